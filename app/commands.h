@@ -1,0 +1,17 @@
+#pragma once
+// Subcommands of the `amt` program. Each add_* registers its subcommand and the callback that runs
+// it; callbacks throw amt::Error on bad input, which main prints as one line before exiting 1.
+#include <CLI/CLI.hpp>
+
+namespace amt::app {
+
+/// `amt dataset info|...`: inspect and build dataset files (DESIGN.md section 4).
+void add_dataset_command(CLI::App& app);
+
+/// `amt bench`: speed and memory figures.
+void add_bench_command(CLI::App& app);
+
+/// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
+void add_threads_option(CLI::App& command);
+
+}  // namespace amt::app

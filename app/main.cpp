@@ -1,0 +1,61 @@
+// amt: apparel-aware motion transfer. Thin program over the folder libraries; see README.md.
+#include <ATen/Parallel.h>
+#include <omp.h>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+#include <H5public.h>
+#include <torch/version.h>
+#include <iostream>
+#include <thread>
+
+#include "amt/version.h"
+#include "app/commands.h"
+#include "data_tools/error.h"
+
+namespace amt::app {
+
+void add_threads_option(CLI::App& command) {
+  auto* threads = command.add_option("--threads", "Worker threads (default: all cores)")
+                      ->check(CLI::Range(1, 1024))
+                      ->default_val(std::max(1u, std::thread::hardware_concurrency()));
+  command.parse_complete_callback([threads] {
+    const int n = threads->as<int>();
+    omp_set_num_threads(n);
+    at::set_num_threads(n);
+  });
+}
+
+}  // namespace amt::app
+
+namespace {
+
+std::string version_text() {
+  unsigned h5_major = 0, h5_minor = 0, h5_release = 0;
+  H5get_libversion(&h5_major, &h5_minor, &h5_release);
+  return "amt " AMT_VERSION " (LibTorch " + std::string(TORCH_VERSION) + ", HDF5 " + std::to_string(h5_major) + "." +
+         std::to_string(h5_minor) + "." + std::to_string(h5_release) + ", Eigen " + std::to_string(EIGEN_WORLD_VERSION) +
+         "." + std::to_string(EIGEN_MAJOR_VERSION) + "." + std::to_string(EIGEN_MINOR_VERSION) + ")";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"amt: apparel-aware motion transfer for stylized characters"};
+  app.set_version_flag("--version", version_text());
+  app.require_subcommand(1);
+  amt::app::add_dataset_command(app);
+  amt::app::add_bench_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const amt::Error& e) {
+    std::cerr << "amt: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "amt: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,117 @@
+#include "data_tools/mesh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "data_tools/error.h"
+
+namespace amt {
+
+void validate_mesh(const TriMesh& mesh, const std::string& source) {
+  AMT_CHECK(mesh.V.rows() > 0, source, ": vertices: expected at least 1 vertex, found an empty mesh");
+  AMT_CHECK(mesh.F.rows() > 0, source, ": faces: expected at least 1 triangle, found none");
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
+    AMT_CHECK(mesh.V.row(i).allFinite(), source, ": vertices: expected finite values, found ", mesh.V(i, 0), " ",
+              mesh.V(i, 1), " ", mesh.V(i, 2), " at vertex ", i);
+  }
+  const auto n = mesh.V.rows();
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int32_t v = mesh.F(f, k);
+      AMT_CHECK(v >= 0 && v < n, source, ": faces: expected vertex indices in [0, ", n, "), found ", v, " in face ", f);
+    }
+  }
+}
+
+MatrixX2i unique_edges(const MatrixX3i& F) {
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  edges.reserve(static_cast<size_t>(F.rows()) * 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = F(f, k), b = F(f, (k + 1) % 3);
+      if (a == b) continue;  // degenerate face side
+      if (a > b) std::swap(a, b);
+      edges.emplace_back(a, b);
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  MatrixX2i E(static_cast<Eigen::Index>(edges.size()), 2);
+  for (size_t e = 0; e < edges.size(); ++e) {
+    E(static_cast<Eigen::Index>(e), 0) = edges[e].first;
+    E(static_cast<Eigen::Index>(e), 1) = edges[e].second;
+  }
+  return E;
+}
+
+Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E) {
+  Adjacency adj;
+  adj.offsets.assign(static_cast<size_t>(num_vertices) + 1, 0);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    ++adj.offsets[E(e, 0) + 1];
+    ++adj.offsets[E(e, 1) + 1];
+  }
+  std::partial_sum(adj.offsets.begin(), adj.offsets.end(), adj.offsets.begin());
+  adj.neighbors.resize(static_cast<size_t>(adj.offsets.back()));
+  std::vector<int32_t> fill(adj.offsets.begin(), adj.offsets.end() - 1);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    adj.neighbors[fill[E(e, 0)]++] = E(e, 1);
+    adj.neighbors[fill[E(e, 1)]++] = E(e, 0);
+  }
+  for (int i = 0; i < num_vertices; ++i) {
+    std::sort(adj.neighbors.begin() + adj.offsets[i], adj.neighbors.begin() + adj.offsets[i + 1]);
+  }
+  return adj;
+}
+
+namespace {
+// Union-find with path halving; used for components here and for bridging in geodesics.
+int find_root(std::vector<int32_t>& parent, int32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+}  // namespace
+
+std::vector<int32_t> connected_components(int num_vertices, const MatrixX2i& E, int* count) {
+  std::vector<int32_t> parent(num_vertices);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    const int a = find_root(parent, E(e, 0)), b = find_root(parent, E(e, 1));
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);  // root stays the smallest vertex
+  }
+  std::vector<int32_t> label(num_vertices, -1);
+  int next = 0;
+  for (int i = 0; i < num_vertices; ++i) {
+    const int r = find_root(parent, i);
+    if (label[r] < 0) label[r] = next++;
+    label[i] = label[r];
+  }
+  if (count) *count = next;
+  return label;
+}
+
+MatrixX3f vertex_normals(const MatrixX3f& V, const MatrixX3i& F) {
+  MatrixX3f N = MatrixX3f::Zero(V.rows(), 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const Eigen::Vector3f a = V.row(F(f, 0)), b = V.row(F(f, 1)), c = V.row(F(f, 2));
+    const Eigen::Vector3f n = (b - a).cross(c - a);  // length = 2 * area: area weighting
+    for (int k = 0; k < 3; ++k) N.row(F(f, k)) += n.transpose();
+  }
+  for (Eigen::Index i = 0; i < N.rows(); ++i) {
+    const float len = N.row(i).norm();
+    if (len > 0) N.row(i) /= len;
+  }
+  return N;
+}
+
+Eigen::VectorXf edge_lengths(const MatrixX3f& V, const MatrixX2i& E) {
+  Eigen::VectorXf L(E.rows());
+  for (Eigen::Index e = 0; e < E.rows(); ++e) L[e] = (V.row(E(e, 0)) - V.row(E(e, 1))).norm();
+  return L;
+}
+
+}  // namespace amt

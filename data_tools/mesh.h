@@ -1,0 +1,55 @@
+#pragma once
+// Triangle meshes: the character surface and its derived connectivity (edges, adjacency,
+// connected components, normals).
+#include <string>
+#include <vector>
+
+#include "data_tools/types.h"
+
+namespace amt {
+
+// === Mesh
+
+/// A triangle mesh. V #V by 3 positions (metres), F #F by 3 vertex indices into V.
+struct TriMesh {
+  MatrixX3f V;
+  MatrixX3i F;
+
+  int num_vertices() const { return static_cast<int>(V.rows()); }
+  int num_faces() const { return static_cast<int>(F.rows()); }
+};
+
+/// Throws amt::Error unless the mesh is usable: at least one vertex and one face, finite positions,
+/// face indices in [0, #V). `source` names the file or object in the message ("a.h5: /characters/x").
+void validate_mesh(const TriMesh& mesh, const std::string& source);
+
+// === Connectivity
+
+/// Unique undirected edges of the faces, each as (i, j) with i < j, sorted lexicographically.
+/// Returns #E by 2.
+MatrixX2i unique_edges(const MatrixX3i& F);
+
+/// Compressed vertex adjacency: the neighbours of vertex i are
+/// neighbors[offsets[i] .. offsets[i+1]), sorted ascending.
+struct Adjacency {
+  std::vector<int32_t> offsets;    // #V + 1
+  std::vector<int32_t> neighbors;  // 2 #E
+  int degree(int i) const { return offsets[i + 1] - offsets[i]; }
+};
+
+/// Adjacency of `num_vertices` vertices from undirected edges E (#E by 2).
+Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E);
+
+/// Connected components over undirected edges E. Returns one label per vertex in [0, count), labels
+/// numbered in order of each component's smallest vertex; `count` receives the number of components.
+std::vector<int32_t> connected_components(int num_vertices, const MatrixX2i& E, int* count = nullptr);
+
+// === Geometry
+
+/// Area-weighted vertex normals (unit length; zero for vertices on no non-degenerate face). #V by 3.
+MatrixX3f vertex_normals(const MatrixX3f& V, const MatrixX3i& F);
+
+/// Edge lengths |V_i - V_j| for E (#E by 2). Returns #E values.
+Eigen::VectorXf edge_lengths(const MatrixX3f& V, const MatrixX2i& E);
+
+}  // namespace amt

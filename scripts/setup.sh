@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Installs every build and run dependency of amt from Debian packages (DESIGN.md section 8).
+# Idempotent: packages already present are skipped; `apt-get update` runs at most once, and only
+# when something is missing. Needs root (or sudo) only when it has something to install.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libtorch-dev          # LibTorch 1.13, CPU
+  libopenblas0-pthread  # LibTorch's BLAS: ~35x faster matrix products than the reference BLAS
+  libeigen3-dev libtinygltf-dev libtinyobjloader-dev libhdf5-dev libcli11-dev
+  libgtest-dev libbullet-dev nlohmann-json3-dev
+  libopenvdb-dev libboost-dev libtbb-dev
+  gnuplot-nox           # report plots (PNG)
+)
+
+# Node runs the Khronos glTF validator (npm package gltf-validator) in tests. The machine image may
+# carry a nodesource build whose nodejs package bundles npm (and conflicts with Debian's npm), so
+# Debian's node packages are only asked for when the commands are absent.
+command -v node >/dev/null 2>&1 || packages+=(nodejs)
+command -v npm >/dev/null 2>&1 || packages+=(npm)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+echo "setup: installing ${missing[*]}"
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -q
+"${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "setup: done"
