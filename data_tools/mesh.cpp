@@ -65,29 +65,35 @@ Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E) {
   return adj;
 }
 
-namespace {
-// Union-find with path halving; used for components here and for bridging in geodesics.
-int find_root(std::vector<int32_t>& parent, int32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
+DisjointSets::DisjointSets(int count) : parent_(static_cast<size_t>(count)), sets_(count) {
+  std::iota(parent_.begin(), parent_.end(), 0);
+}
+
+int32_t DisjointSets::find(int32_t x) {
+  while (parent_[x] != x) {
+    parent_[x] = parent_[parent_[x]];
+    x = parent_[x];
   }
   return x;
 }
-}  // namespace
+
+bool DisjointSets::unite(int32_t a, int32_t b) {
+  a = find(a);
+  b = find(b);
+  if (a == b) return false;
+  parent_[std::max(a, b)] = std::min(a, b);
+  --sets_;
+  return true;
+}
 
 std::vector<int32_t> connected_components(int num_vertices, const MatrixX2i& E, int* count) {
-  std::vector<int32_t> parent(num_vertices);
-  std::iota(parent.begin(), parent.end(), 0);
-  for (Eigen::Index e = 0; e < E.rows(); ++e) {
-    const int a = find_root(parent, E(e, 0)), b = find_root(parent, E(e, 1));
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);  // root stays the smallest vertex
-  }
+  DisjointSets sets(num_vertices);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) sets.unite(E(e, 0), E(e, 1));
   std::vector<int32_t> label(num_vertices, -1);
   int next = 0;
   for (int i = 0; i < num_vertices; ++i) {
-    const int r = find_root(parent, i);
-    if (label[r] < 0) label[r] = next++;
+    const int r = sets.find(i);
+    if (label[r] < 0) label[r] = next++;  // r <= i: the representative is labelled first
     label[i] = label[r];
   }
   if (count) *count = next;

@@ -40,6 +40,23 @@ struct Adjacency {
 /// Adjacency of `num_vertices` vertices from undirected edges E (#E by 2).
 Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E);
 
+/// Union-find over `count` elements with path halving; the representative of a set is its
+/// smallest element, so results do not depend on the order of unions.
+class DisjointSets {
+ public:
+  explicit DisjointSets(int count);
+  /// Representative (smallest element) of x's set.
+  int32_t find(int32_t x);
+  /// Joins the sets of a and b; false when they were already one set.
+  bool unite(int32_t a, int32_t b);
+  /// Number of disjoint sets.
+  int num_sets() const { return sets_; }
+
+ private:
+  std::vector<int32_t> parent_;
+  int sets_;
+};
+
 /// Connected components over undirected edges E. Returns one label per vertex in [0, count), labels
 /// numbered in order of each component's smallest vertex; `count` receives the number of components.
 std::vector<int32_t> connected_components(int num_vertices, const MatrixX2i& E, int* count = nullptr);

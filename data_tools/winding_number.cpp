@@ -1,0 +1,274 @@
+#include "data_tools/winding_number.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+
+#include "data_tools/error.h"
+#include "data_tools/mesh.h"
+
+namespace amt {
+namespace {
+
+constexpr double kFourPi = 4.0 * M_PI;
+// Triangles per leaf: small enough that near-field leaves are cheap, large enough to keep the tree
+// shallow (Barill et al. use a few per leaf as well).
+constexpr int32_t kLeafSize = 8;
+// Traversal stack size. Splits are at the median triangle, so the depth is at most
+// ceil(log2(#F / kLeafSize)) + 1 and a depth-first stack never holds more than depth + 1 nodes.
+constexpr int kMaxStack = 64;
+
+Eigen::Vector3d to_double(const Eigen::Vector3f& v) {
+  return v.cast<double>();
+}
+
+// Signed solid angle of triangle (a, b, c) seen from the origin (corners already relative to the query
+// point), by Van Oosterom and Strackee (1983): tan(omega / 2) = det[a b c] / (|a||b||c| + (a.b)|c| +
+// (b.c)|a| + (c.a)|b|). Positive when the origin lies behind the triangle, i.e. on the side its
+// counter-clockwise normal points away from.
+double solid_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const double la = a.norm(), lb = b.norm(), lc = c.norm();
+  const double numerator = a.dot(b.cross(c));
+  const double denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+  return 2.0 * std::atan2(numerator, denominator);
+}
+
+// Closest point to p on segment [a, b].
+Eigen::Vector3d closest_point_on_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d ab = b - a;
+  const double length2 = ab.squaredNorm();
+  if (length2 <= 0) return a;
+  const double t = std::clamp((p - a).dot(ab) / length2, 0.0, 1.0);
+  return a + t * ab;
+}
+
+// Closest point to p on triangle (a, b, c): Ericson, Real-Time Collision Detection (2005), section
+// 5.1.5, closestPtPointTriangle. Classifies p against the Voronoi regions of the corners, then of the
+// edges, then projects onto the face. Degenerate (zero-area) triangles fall back to their edges.
+Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                          const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  if (ab.cross(ac).squaredNorm() <= 0) {
+    const Eigen::Vector3d candidates[3] = {closest_point_on_segment(p, a, b), closest_point_on_segment(p, b, c),
+                                           closest_point_on_segment(p, c, a)};
+    return *std::min_element(std::begin(candidates), std::end(candidates),
+                             [&p](const Eigen::Vector3d& x, const Eigen::Vector3d& y) {
+                               return (x - p).squaredNorm() < (y - p).squaredNorm();
+                             });
+  }
+  // Corner region a.
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  // Corner region b.
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  // Edge region ab.
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + (d1 / (d1 - d3)) * ab;
+  // Corner region c.
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  // Edge region ac.
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + (d2 / (d2 - d6)) * ac;
+  // Edge region bc.
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
+  // Face region: barycentric coordinates (u, v, w) = (va, vb, vc) / (va + vb + vc).
+  const double denominator = 1.0 / (va + vb + vc);
+  return a + ab * (vb * denominator) + ac * (vc * denominator);
+}
+
+}  // namespace
+
+WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, double beta) : beta_(beta) {
+  validate_mesh(TriMesh{V, F}, "WindingNumberTree");
+  AMT_CHECK(std::isfinite(beta) && beta > 0, "WindingNumberTree: beta: expected a positive number, found ", beta);
+  triangles_.resize(static_cast<size_t>(F.rows()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    triangles_[f] = {V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose()};
+  }
+  nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
+  build(0, static_cast<int32_t>(triangles_.size()), 0);
+}
+
+// Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
+// f(x) = (x - q) / |x - q|^3 through them, sum_t a_t n_t . (mean of f over triangle t). Taylor-expanded
+// about the centre c, with r = c - q and x - c = d:
+//   f_i(x) ~ f_i(c) + D_ij d_j + 1/2 D_ijk d_j d_k,
+//   D_ij  = delta_ij / |r|^3 - 3 r_i r_j / |r|^5,
+//   D_ijk = -3 (delta_ij r_k + delta_ik r_j + delta_jk r_i) / |r|^5 + 15 r_i r_j r_k / |r|^7,
+// the flux is r . N / |r|^3 + D_ij M_ij + 1/2 D_ijk Q_ijk with Q_ijk = (Q_i)_jk. Contracting:
+//   D_ij M_ij    = tr M / |r|^3 - 3 r^T M r / |r|^5
+//   D_ijk Q_ijk  = -3 (2 sum_i (Q_i r)_i + sum_i r_i tr Q_i) / |r|^5 + 15 sum_i r_i r^T Q_i r / |r|^7.
+// Each order shrinks the error by about radius / |r|.
+double WindingNumberTree::FarField::solid_angle(const Eigen::Vector3d& r) const {
+  const double dist2 = r.squaredNorm(), dist = std::sqrt(dist2);
+  const double inv3 = 1.0 / (dist2 * dist), inv5 = inv3 / dist2, inv7 = inv5 / dist2;
+  const double order0 = r.dot(normal_sum) * inv3;
+  const double order1 = first_moment.trace() * inv3 - 3.0 * r.dot(first_moment * r) * inv5;
+  double diagonal = 0, traces = 0, cubic = 0;
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d Qr = second_moment[i] * r;
+    diagonal += Qr[i];
+    traces += r[i] * second_moment[i].trace();
+    cubic += r[i] * r.dot(Qr);
+  }
+  const double order2 = 0.5 * (-3.0 * (2.0 * diagonal + traces) * inv5 + 15.0 * cubic * inv7);
+  return order0 + order1 + order2;
+}
+
+int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
+  assert(depth < kMaxStack - 1);
+  Node node;
+  node.first = first;
+  node.count = count;
+  FarField& far = node.far_field;
+  // First pass: bounds, area-weighted centroid and normal sum, and the bounds of the triangle
+  // centroids, which choose the split.
+  Eigen::AlignedBox3f centroid_box;
+  Eigen::Vector3d weighted_centroids = Eigen::Vector3d::Zero(), plain_centroids = Eigen::Vector3d::Zero();
+  double area = 0;
+  far.normal_sum.setZero();
+  for (int32_t t = first; t < first + count; ++t) {
+    const Triangle& tri = triangles_[t];
+    node.box.extend(tri.a).extend(tri.b).extend(tri.c);
+    centroid_box.extend((tri.a + tri.b + tri.c) / 3.0f);
+    const Eigen::Vector3d a = to_double(tri.a), b = to_double(tri.b), c = to_double(tri.c);
+    const Eigen::Vector3d area_normal = 0.5 * (b - a).cross(c - a);  // a_t n_t
+    const double triangle_area = area_normal.norm();
+    far.normal_sum += area_normal;
+    weighted_centroids += triangle_area * (a + b + c) / 3.0;
+    plain_centroids += (a + b + c) / 3.0;
+    area += triangle_area;
+  }
+  far.center = area > 0 ? Eigen::Vector3d(weighted_centroids / area) : Eigen::Vector3d(plain_centroids / count);
+
+  // Second pass, about the centre: moments and radius. Over a triangle with centroid x_t, the mean of
+  // (x - c)(x - c)^T is d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c.
+  far.first_moment.setZero();
+  for (Eigen::Matrix3d& Q : far.second_moment) Q.setZero();
+  for (int32_t t = first; t < first + count; ++t) {
+    const Triangle& tri = triangles_[t];
+    const Eigen::Vector3d a = to_double(tri.a), b = to_double(tri.b), c = to_double(tri.c);
+    const Eigen::Vector3d area_normal = 0.5 * (b - a).cross(c - a);
+    const Eigen::Vector3d centroid = (a + b + c) / 3.0, d = centroid - far.center;
+    Eigen::Matrix3d spread = d * d.transpose();
+    for (const Eigen::Vector3d* corner : {&a, &b, &c}) {
+      spread += (*corner - centroid) * (*corner - centroid).transpose() / 12.0;
+      node.radius = std::max(node.radius, (*corner - far.center).norm());
+    }
+    far.first_moment += area_normal * d.transpose();
+    for (int i = 0; i < 3; ++i) far.second_moment[i] += area_normal[i] * spread;
+  }
+
+  const auto index = static_cast<int32_t>(nodes_.size());
+  nodes_.push_back(node);
+  if (count <= kLeafSize) return index;
+
+  // Median split along the longest axis of the centroid bounds.
+  int axis = 0;
+  centroid_box.sizes().maxCoeff(&axis);
+  const int32_t half = count / 2;
+  std::nth_element(triangles_.begin() + first, triangles_.begin() + first + half, triangles_.begin() + first + count,
+                   [axis](const Triangle& x, const Triangle& y) {
+                     return (x.a[axis] + x.b[axis] + x.c[axis]) < (y.a[axis] + y.b[axis] + y.c[axis]);
+                   });
+  const int32_t left = build(first, half, depth + 1);
+  const int32_t right = build(first + half, count - half, depth + 1);
+  nodes_[index].left = left;
+  nodes_[index].right = right;
+  return index;
+}
+
+double WindingNumberTree::winding_number(const Eigen::Vector3f& p) const {
+  const Eigen::Vector3d q = to_double(p);
+  const double beta2 = beta_ * beta_;
+  double omega = 0;  // total solid angle
+  int32_t stack[kMaxStack];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    const Eigen::Vector3d r = node.far_field.center - q;
+    if (r.squaredNorm() > beta2 * node.radius * node.radius) {
+      omega += node.far_field.solid_angle(r);
+    } else if (node.is_leaf()) {
+      for (int32_t t = node.first; t < node.first + node.count; ++t) {
+        const Triangle& tri = triangles_[t];
+        omega += solid_angle(to_double(tri.a) - q, to_double(tri.b) - q, to_double(tri.c) - q);
+      }
+    } else {
+      stack[top++] = node.left;
+      stack[top++] = node.right;
+    }
+  }
+  return omega / kFourPi;
+}
+
+double WindingNumberTree::exact_winding_number(const Eigen::Vector3f& p) const {
+  const Eigen::Vector3d q = to_double(p);
+  double omega = 0;
+  for (const Triangle& tri : triangles_) {
+    omega += solid_angle(to_double(tri.a) - q, to_double(tri.b) - q, to_double(tri.c) - q);
+  }
+  return omega / kFourPi;
+}
+
+bool WindingNumberTree::inside(const Eigen::Vector3f& p) const {
+  return winding_number(p) > 0.5;
+}
+
+float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest) const {
+  const Eigen::Vector3d q = to_double(p);
+  double best2 = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d best_point = q;
+  // Depth first, nearer child first, skipping every box farther than the best distance so far.
+  int32_t stack[kMaxStack];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (static_cast<double>(node.box.squaredExteriorDistance(p)) >= best2) continue;
+    if (node.is_leaf()) {
+      for (int32_t t = node.first; t < node.first + node.count; ++t) {
+        const Triangle& tri = triangles_[t];
+        const Eigen::Vector3d x = closest_point_on_triangle(q, to_double(tri.a), to_double(tri.b), to_double(tri.c));
+        const double d2 = (x - q).squaredNorm();
+        if (d2 < best2) {
+          best2 = d2;
+          best_point = x;
+        }
+      }
+    } else {
+      const float d_left = nodes_[node.left].box.squaredExteriorDistance(p);
+      const float d_right = nodes_[node.right].box.squaredExteriorDistance(p);
+      const bool left_first = d_left <= d_right;
+      const int32_t near = left_first ? node.left : node.right, far = left_first ? node.right : node.left;
+      const float d_near = std::min(d_left, d_right), d_far = std::max(d_left, d_right);
+      if (d_far < best2) stack[top++] = far;  // pushed first, popped last
+      if (d_near < best2) stack[top++] = near;
+    }
+  }
+  if (closest) *closest = best_point.cast<float>();
+  return static_cast<float>(std::sqrt(best2));
+}
+
+Eigen::VectorXd WindingNumberTree::winding_numbers(const MatrixX3f& P) const {
+  Eigen::VectorXd w(P.rows());
+#pragma omp parallel for schedule(dynamic, 64)
+  for (Eigen::Index i = 0; i < P.rows(); ++i) w[i] = winding_number(P.row(i).transpose());
+  return w;
+}
+
+Eigen::VectorXf WindingNumberTree::distances(const MatrixX3f& P) const {
+  Eigen::VectorXf d(P.rows());
+#pragma omp parallel for schedule(dynamic, 64)
+  for (Eigen::Index i = 0; i < P.rows(); ++i) d[i] = distance(P.row(i).transpose());
+  return d;
+}
+
+}  // namespace amt

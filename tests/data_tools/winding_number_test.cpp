@@ -1,0 +1,187 @@
+// Winding numbers and distances against a closed unit cube (values known exactly) and a generated
+// icosphere (the tree's approximation against the exact O(F) sum, inside against |p - c| < r).
+#include "data_tools/winding_number.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <random>
+#include <utility>
+
+#include "data_tools/error.h"
+#include "data_tools/mesh.h"
+
+namespace amt {
+namespace {
+
+// Reorders every triangle of a convex mesh so that its normal points away from `center`.
+void orient_outward(TriMesh& mesh, const Eigen::Vector3f& center) {
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3f a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+    if ((b - a).cross(c - a).dot((a + b + c) / 3.0f - center) < 0) std::swap(mesh.F(f, 1), mesh.F(f, 2));
+  }
+}
+
+// The cube [0, 1]^3 as 12 outward-oriented triangles; vertex x + 2y + 4z sits at (x, y, z).
+TriMesh unit_cube() {
+  TriMesh mesh;
+  mesh.V.resize(8, 3);
+  for (int i = 0; i < 8; ++i) mesh.V.row(i) << float(i & 1), float((i >> 1) & 1), float((i >> 2) & 1);
+  mesh.F.resize(12, 3);
+  mesh.F << 0, 1, 3, 0, 3, 2,  // z = 0
+      4, 5, 7, 4, 7, 6,        // z = 1
+      0, 1, 5, 0, 5, 4,        // y = 0
+      2, 3, 7, 2, 7, 6,        // y = 1
+      0, 2, 6, 0, 6, 4,        // x = 0
+      1, 3, 7, 1, 7, 5;        // x = 1
+  orient_outward(mesh, Eigen::Vector3f(0.5f, 0.5f, 0.5f));
+  return mesh;
+}
+
+// An icosahedron around `center` subdivided `levels` times (20 * 4^levels triangles), every vertex
+// pushed onto the sphere of radius r, triangles oriented outward.
+TriMesh icosphere(int levels, float r, const Eigen::Vector3f& center) {
+  const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
+  std::vector<Eigen::Vector3f> vertices = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<Eigen::Vector3i> faces = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                        {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                        {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                        {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& v : vertices) v.normalize();
+  for (int level = 0; level < levels; ++level) {
+    std::map<std::pair<int, int>, int> midpoint;
+    auto middle = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto found = midpoint.find(key);
+      if (found != midpoint.end()) return found->second;
+      vertices.push_back((vertices[a] + vertices[b]).normalized());
+      return midpoint[key] = static_cast<int>(vertices.size()) - 1;
+    };
+    std::vector<Eigen::Vector3i> finer;
+    for (const auto& f : faces) {
+      const int ab = middle(f[0], f[1]), bc = middle(f[1], f[2]), ca = middle(f[2], f[0]);
+      finer.insert(finer.end(), {{f[0], ab, ca}, {f[1], bc, ab}, {f[2], ca, bc}, {ab, bc, ca}});
+    }
+    faces = std::move(finer);
+  }
+  TriMesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(vertices.size()), 3);
+  for (size_t i = 0; i < vertices.size(); ++i) mesh.V.row(i) = (center + r * vertices[i]).transpose();
+  mesh.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) mesh.F.row(f) = faces[f].transpose();
+  orient_outward(mesh, center);
+  return mesh;
+}
+
+TEST(WindingNumber, UnitCubeInsideAndOutside) {
+  const TriMesh cube = unit_cube();
+  const WindingNumberTree tree(cube.V, cube.F);
+  EXPECT_EQ(tree.num_triangles(), 12);
+  const Eigen::Vector3f inside_points[] = {
+      {0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.99f}, {0.01f, 0.3f, 0.7f}, {0.9f, 0.9f, 0.9f}};
+  for (const auto& p : inside_points) {
+    EXPECT_NEAR(tree.winding_number(p), 1.0, 1e-3) << p.transpose();
+    EXPECT_NEAR(tree.exact_winding_number(p), 1.0, 1e-9) << p.transpose();
+    EXPECT_TRUE(tree.inside(p)) << p.transpose();
+  }
+  const Eigen::Vector3f outside_points[] = {{0.5f, 0.5f, 1.01f},  {-0.01f, 0.5f, 0.5f},  {1.01f, 1.01f, 1.01f},
+                                            {10.0f, -3.0f, 5.0f}, {0.5f, 0.5f, -100.0f}, {2.0f, 0.5f, 0.5f}};
+  for (const auto& p : outside_points) {
+    EXPECT_NEAR(tree.winding_number(p), 0.0, 1e-3) << p.transpose();
+    EXPECT_NEAR(tree.exact_winding_number(p), 0.0, 1e-9) << p.transpose();
+    EXPECT_FALSE(tree.inside(p)) << p.transpose();
+  }
+}
+
+TEST(WindingNumber, ReversedCubeIsMinusOneInside) {
+  TriMesh cube = unit_cube();
+  cube.F.col(1).swap(cube.F.col(2));
+  const WindingNumberTree tree(cube.V, cube.F);
+  EXPECT_NEAR(tree.winding_number({0.5f, 0.5f, 0.5f}), -1.0, 1e-3);
+  EXPECT_NEAR(tree.winding_number({0.2f, 0.7f, 0.95f}), -1.0, 1e-3);
+  EXPECT_NEAR(tree.winding_number({0.5f, 0.5f, 1.5f}), 0.0, 1e-3);
+  EXPECT_FALSE(tree.inside({0.5f, 0.5f, 0.5f}));
+}
+
+TEST(WindingNumber, IcosphereMatchesExactSumAndSphere) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const float r = 0.8f;
+  const TriMesh sphere = icosphere(4, r, center);
+  ASSERT_EQ(sphere.F.rows(), 5120);
+  const WindingNumberTree tree(sphere.V, sphere.F);
+
+  std::mt19937 rng(2024);
+  std::uniform_real_distribution<float> offset(-1.5f * r, 1.5f * r);
+  MatrixX3f P(200, 3);
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    P.row(i) = (center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng))).transpose();
+  }
+  const Eigen::VectorXd batch = tree.winding_numbers(P);
+  int checked_inside = 0, checked_outside = 0;
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    const Eigen::Vector3f p = P.row(i);
+    const double fast = tree.winding_number(p);
+    EXPECT_EQ(batch[i], fast);
+    EXPECT_NEAR(fast, tree.exact_winding_number(p), 1e-2) << p.transpose();
+    const float radius = (p - center).norm();
+    if (std::abs(radius - r) > 0.01f * r) {
+      EXPECT_EQ(tree.inside(p), radius < r) << p.transpose() << " at radius " << radius;
+      ++(radius < r ? checked_inside : checked_outside);
+    }
+  }
+  EXPECT_GT(checked_inside, 20);  // the sample covers both sides
+  EXPECT_GT(checked_outside, 20);
+}
+
+TEST(WindingNumberDistance, UnitCubeByHand) {
+  const TriMesh cube = unit_cube();
+  const WindingNumberTree tree(cube.V, cube.F);
+  Eigen::Vector3f closest;
+  EXPECT_FLOAT_EQ(tree.distance({0.5f, 0.5f, 2.0f}, &closest), 1.0f);  // above the top face z = 1
+  EXPECT_TRUE(closest.isApprox(Eigen::Vector3f(0.5f, 0.5f, 1.0f), 1e-6f));
+  EXPECT_FLOAT_EQ(tree.distance({0.5f, 0.5f, 2.5f}), 1.5f);
+  EXPECT_NEAR(tree.distance({0.5f, 0.5f, 0.9f}, &closest), 0.1f, 1e-6f);
+  EXPECT_TRUE(closest.isApprox(Eigen::Vector3f(0.5f, 0.5f, 1.0f), 1e-6f));
+  EXPECT_FLOAT_EQ(tree.distance({2.0f, 2.0f, 2.0f}, &closest), std::sqrt(3.0f));  // corner region
+  EXPECT_TRUE(closest.isApprox(Eigen::Vector3f(1.0f, 1.0f, 1.0f), 1e-6f));
+  EXPECT_FLOAT_EQ(tree.distance({0.5f, -1.0f, -1.0f}), std::sqrt(2.0f));  // edge region
+  EXPECT_FLOAT_EQ(tree.distance({1.0f, 0.25f, 0.5f}), 0.0f);              // on the surface
+}
+
+TEST(WindingNumberDistance, IcosphereAgreesWithTheSphere) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const float r = 0.8f;
+  const TriMesh sphere = icosphere(4, r, center);
+  const WindingNumberTree tree(sphere.V, sphere.F);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> offset(-2.0f * r, 2.0f * r);
+  MatrixX3f P(100, 3);
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    P.row(i) = (center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng))).transpose();
+  }
+  const Eigen::VectorXf batch = tree.distances(P);
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    const Eigen::Vector3f p = P.row(i);
+    Eigen::Vector3f closest;
+    const float d = tree.distance(p, &closest);
+    EXPECT_EQ(batch[i], d);
+    // The faces lie inside the sphere by at most about 0.001 r at this resolution.
+    EXPECT_NEAR(d, std::abs((p - center).norm() - r), 2e-3f * r) << p.transpose();
+    EXPECT_NEAR((closest - center).norm(), r, 2e-3f * r);
+    EXPECT_NEAR((closest - p).norm(), d, 1e-5f);
+  }
+}
+
+TEST(WindingNumber, RejectsBadInput) {
+  const TriMesh cube = unit_cube();
+  EXPECT_THROW(WindingNumberTree(MatrixX3f(0, 3), MatrixX3i(0, 3)), Error);
+  EXPECT_THROW(WindingNumberTree(cube.V, cube.F, 0.0), Error);
+  MatrixX3i bad = cube.F;
+  bad(3, 2) = 8;
+  EXPECT_THROW(WindingNumberTree(cube.V, bad), Error);
+}
+
+}  // namespace
+}  // namespace amt
