@@ -1,5 +1,6 @@
 #include "data_tools/motion.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "data_tools/error.h"
@@ -28,6 +29,42 @@ void validate_motion(const Motion& m, const Skeleton& s, const std::string& sour
               n, " at frame ", i / m.num_joints(), " joint ", m.joint_names[i % m.num_joints()]);
   }
   AMT_CHECK(m.root_translation.allFinite(), source, ": root_translation: expected finite values, found NaN or infinity");
+}
+
+Motion resample_motion(const Motion& motion, float fps) {
+  AMT_CHECK(std::isfinite(fps) && fps > 0 && fps <= 1000, "resample: fps: expected a frame rate in (0, 1000], found ",
+            fps);
+  AMT_CHECK(std::isfinite(motion.fps) && motion.fps > 0, "resample: source fps: expected a positive frame rate, found ",
+            motion.fps);
+  const int T = motion.num_frames(), J = motion.num_joints();
+  if (T == 0) {
+    Motion out = motion;
+    out.fps = fps;
+    return out;
+  }
+  const double ratio = static_cast<double>(fps) / motion.fps;  // output frames per source frame
+  const double last = (T - 1) * ratio + 1e-4;
+  AMT_CHECK(last + 1 <= kMaxResampledFrames, "resample: fps: expected at most ", kMaxResampledFrames,
+            " output frames, found ", std::floor(last) + 1, " (", T, " frames at ", motion.fps, " fps resampled to ",
+            fps, " fps)");
+  const int out_frames = static_cast<int>(std::floor(last)) + 1;
+
+  Motion out;
+  out.fps = fps;
+  out.joint_names = motion.joint_names;
+  out.local_rotations.resize(static_cast<size_t>(out_frames) * J);
+  out.root_translation.resize(out_frames, 3);
+  for (int k = 0; k < out_frames; ++k) {
+    const double u = k / ratio;  // position in source frames
+    int i0 = static_cast<int>(std::floor(u));
+    float a = static_cast<float>(u - i0);
+    if (i0 >= T - 1) i0 = T - 1, a = 0.0f;
+    const int i1 = std::min(i0 + 1, T - 1);
+    for (int j = 0; j < J; ++j)
+      out.rotation(k, j) = motion.rotation(i0, j).slerp(a, motion.rotation(i1, j)).normalized();
+    out.root_translation.row(k) = (1.0f - a) * motion.root_translation.row(i0) + a * motion.root_translation.row(i1);
+  }
+  return out;
 }
 
 Transforms forward_kinematics(const Skeleton& s, const Motion& m, int t) {

@@ -36,6 +36,15 @@ Motion rest_motion(const Skeleton& skeleton, int frames, float fps = 30.0f);
 /// quaternions, finite values and a positive frame rate.
 void validate_motion(const Motion& motion, const Skeleton& skeleton, const std::string& source);
 
+/// Maximum number of frames resample_motion produces.
+constexpr int kMaxResampledFrames = 1000000;
+
+/// Resamples a motion to `fps` (in (0, 1000]): output frame k is at time k / fps, for
+/// k = 0 .. floor((T - 1) * fps / motion.fps + 1e-4), so every output frame lies within the clip;
+/// rotations are slerped and root translation interpolated linearly between the two source frames
+/// around that time. Throws amt::Error for a rate out of range or more than 1 000 000 output frames.
+Motion resample_motion(const Motion& motion, float fps);
+
 // === Forward kinematics
 
 /// Joint transforms of frame t (the paper's T^(t)): for every joint, R_j its global rotation relative
