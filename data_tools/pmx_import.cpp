@@ -828,6 +828,7 @@ PmxModel pmx_to_amt_frame(const PmxModel& model, float scale) {
   // S = diag(1, 1, -1): negate the Z column of positions and directions.
   PmxVertices& v = out.vertices;
   const auto to_amt = [](MatrixX3f& points, float factor) {
+    if (points.rows() == 0) return;  // a column block of an empty matrix offsets a null pointer
     points *= factor;
     points.col(2) *= -1.0f;
   };
@@ -836,7 +837,7 @@ PmxModel pmx_to_amt_frame(const PmxModel& model, float scale) {
   to_amt(v.sdef_c, scale);
   to_amt(v.sdef_r0, scale);
   to_amt(v.sdef_r1, scale);
-  out.faces.col(1).swap(out.faces.col(2));  // the reflection reverses winding
+  if (out.faces.rows() > 0) out.faces.col(1).swap(out.faces.col(2));  // the reflection reverses winding
 
   for (PmxBone& b : out.bones) {
     b.position = pmx_to_amt_position(b.position, scale);

@@ -1532,3 +1532,20 @@ TEST(PmxErrors, MissingFileAndDirectory) {
 
 }  // namespace
 }  // namespace amt
+
+namespace amt {
+namespace {
+
+// Inputs the fuzzer (scripts/fuzz.sh pmx) found crashing once; each must import or fail cleanly.
+TEST(PmxFuzzRegressions, EmptySectionsConvertToTheAmtFrame) {
+  const std::string path = std::string(AMT_TEST_ASSETS_DIR) + "/pmx/fuzz_empty_sections.pmx";
+  try {
+    const PmxModel model = pmx_to_amt_frame(read_pmx(path));
+    EXPECT_EQ(model.frame, PmxFrame::kAmt);
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("fuzz_empty_sections.pmx"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace amt
