@@ -1,0 +1,105 @@
+#include "models/apparel_displacement.h"
+
+#include <ATen/ATen.h>
+
+#include <string>
+
+#include "models/pointnet.h"
+
+namespace amt {
+
+ApparelDisplacementNetImpl::ApparelDisplacementNetImpl(ApparelDisplacementOptions options_)
+    : options(std::move(options_)) {
+  TORCH_CHECK(options.num_joints > 0 && options.motion_code > 0, "ApparelDisplacementNet: num_joints and "
+              "motion_code must be positive");
+  TORCH_CHECK(!options.edge_widths.empty(), "ApparelDisplacementNet: needs at least one EdgeConv block");
+  std::vector<int64_t> motion = {options.num_joints * 12};
+  motion.insert(motion.end(), options.motion_widths.begin(), options.motion_widths.end());
+  motion.push_back(options.motion_code);
+  MlpOptions motion_options(motion);
+  motion_options.negative_slope = options.negative_slope;
+  motion_options.activate_last = true;
+  motion_encoder_ = register_module("motion_encoder", Mlp(motion_options));
+
+  int64_t channels = 9 + options.motion_code;
+  for (size_t l = 0; l < options.edge_widths.size(); ++l) {
+    EdgeConvOptions block(channels, options.edge_widths[l]);
+    block.negative_slope = options.negative_slope;
+    block.naive = options.naive_edge_conv;
+    blocks_.push_back(register_module("edge_conv" + std::to_string(l), EdgeConv(block)));
+    channels = options.edge_widths[l];
+  }
+
+  std::vector<int64_t> decoder = {channels};
+  decoder.insert(decoder.end(), options.decoder_widths.begin(), options.decoder_widths.end());
+  decoder.push_back(3);
+  MlpOptions decoder_options(decoder);
+  decoder_options.negative_slope = options.negative_slope;
+  decoder_ = register_module("decoder", Mlp(decoder_options));
+}
+
+at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const at::Tensor& joint_transforms) {
+  const int64_t B = history.size(0), N = history.size(2), J = options.num_joints;
+  const at::Tensor a3 = history.select(1, 0), a2 = history.select(1, 1), a1 = history.select(1, 2);  // A^(t-3..t-1)
+  const at::Tensor velocity = a1 - a2;                  // discrete Ȧ^(t-1)
+  const at::Tensor acceleration = a1 - 2.0 * a2 + a3;  // discrete Ä^(t-1)
+  at::Tensor position = a1;
+  at::Tensor motion = joint_transforms;  // (B, J, 3, 4)
+  if (options.root_relative) {
+    const at::Tensor root = joint_transforms.select(1, 0).select(2, 3);  // (B, 3) root position at frame t
+    position = a1 - root.unsqueeze(1);
+    motion = at::cat({joint_transforms.narrow(3, 0, 3),
+                      (joint_transforms.select(3, 3) - root.unsqueeze(1)).unsqueeze(3)}, 3);
+  }
+  const at::Tensor code = motion_encoder_->forward(motion.reshape({B, J * 12}));  // f_t(T^(t)), (B, K)
+  // eq. (12): H = A ⊕ Ȧ ⊕ Ä ⊕ f_t(T), the global code broadcast to every apparel vertex.
+  return at::cat({position, options.velocity_scale * velocity, options.velocity_scale * acceleration,
+                  code.unsqueeze(1).expand({B, N, options.motion_code})},
+                 2);
+}
+
+at::Tensor ApparelDisplacementNetImpl::forward(const at::Tensor& history, const at::Tensor& joint_transforms,
+                                               const at::Tensor& neighbors) {
+  const bool unbatched = history.dim() == 3;
+  const at::Tensor h = batched(history, 3), T = batched(joint_transforms, 3);
+  const int64_t J = options.num_joints;
+  TORCH_CHECK(h.dim() == 4 && h.size(1) == 3 && h.size(3) == 3, "ApparelDisplacementNet: history must be (3, N_a, 3) "
+              "or (B, 3, N_a, 3), got ", history.sizes());
+  TORCH_CHECK(T.dim() == 4 && T.size(0) == h.size(0) && T.size(1) == J && T.size(2) == 3 && T.size(3) == 4,
+              "ApparelDisplacementNet: joint_transforms must be (", J, ", 3, 4) or (", h.size(0), ", ", J,
+              ", 3, 4), got ", joint_transforms.sizes());
+  TORCH_CHECK(neighbors.dim() == 2 && neighbors.size(0) == h.size(2), "ApparelDisplacementNet: neighbors must be (",
+              h.size(2), ", K_max), got ", neighbors.sizes());
+  at::Tensor x = features(h, T);                                 // (B, N_a, 9 + K)
+  for (auto& block : blocks_) x = block->forward(x, neighbors);  // eq. (13)
+  const at::Tensor delta = options.output_scale * decoder_->forward(x);  // (B, N_a, 3)
+  return unbatched ? delta.squeeze(0) : delta;
+}
+
+at::Tensor ApparelDisplacementNetImpl::step(const at::Tensor& history, const at::Tensor& joint_transforms,
+                                            const at::Tensor& neighbors) {
+  return history.select(-3, 2) + forward(history, joint_transforms, neighbors);  // eq. (11)
+}
+
+at::Tensor ApparelDisplacementNetImpl::rollout(const at::Tensor& initial, const at::Tensor& joint_transforms,
+                                               const at::Tensor& neighbors) {
+  const bool unbatched = initial.dim() == 3;
+  at::Tensor history = batched(initial, 3);        // (B, 3, N_a, 3)
+  const at::Tensor T = batched(joint_transforms, 4);  // (B, T, J, 3, 4)
+  TORCH_CHECK(history.dim() == 4 && history.size(1) == 3, "ApparelDisplacementNet::rollout: initial must be "
+              "(3, N_a, 3) or (B, 3, N_a, 3), got ", initial.sizes());
+  TORCH_CHECK(T.dim() == 5 && T.size(0) == history.size(0), "ApparelDisplacementNet::rollout: joint_transforms must "
+              "be (T, J, 3, 4) or (B, T, J, 3, 4), got ", joint_transforms.sizes());
+  TORCH_CHECK(T.size(1) > 0, "ApparelDisplacementNet::rollout: needs at least one frame");
+  std::vector<at::Tensor> frames;
+  frames.reserve(static_cast<size_t>(T.size(1)));
+  for (int64_t t = 0; t < T.size(1); ++t) {
+    const at::Tensor next = step(history, T.select(1, t), neighbors);  // (B, N_a, 3)
+    frames.push_back(next);
+    history = at::cat({history.narrow(1, 1, 2), next.unsqueeze(1)}, 1);
+  }
+  const at::Tensor out = at::stack(frames, 1);  // (B, T, N_a, 3)
+  return unbatched ? out.squeeze(0) : out;
+}
+
+}  // namespace amt

@@ -1,0 +1,46 @@
+#pragma once
+// The apparel segmentation module f_c (paper section 4.1): a PointNet on the rest vertex positions
+// that predicts, per vertex, the logit of the vertex being apparel (eq. 2).
+#include <torch/nn/module.h>
+#include <torch/nn/pimpl.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "models/pointnet.h"
+
+namespace amt {
+
+/// Configuration of the ApparelSegmenter.
+struct ApparelSegmenterOptions {
+  /// Shared per-point encoder widths; the last is the global feature (paper: 64/128/1024).
+  std::vector<int64_t> encoder_widths = {64, 128, 256};
+  /// Hidden widths of the per-point decoder.
+  std::vector<int64_t> decoder_widths = {128, 64};
+  /// LeakyReLU slope of the MLPs (0 = ReLU; leaky keeps units of a small network without batch
+  /// normalisation from dying).
+  double negative_slope = 0.2;
+  /// Normalise V inside the network (centre on its bounding box, divide by its height), so callers
+  /// pass rest positions in metres. When false, callers must normalise.
+  bool normalize_input = true;
+};
+
+/// f_c: rest vertex positions -> apparel logits. p̂ = sigmoid(logits) (eq. 2).
+class ApparelSegmenterImpl : public torch::nn::Module {
+ public:
+  explicit ApparelSegmenterImpl(ApparelSegmenterOptions options = {});
+
+  /// V (B, N, 3) or (N, 3) rest positions, metres -> logits (B, N) or (N).
+  at::Tensor forward(const at::Tensor& V);
+
+  /// V (B, N, 3) or (N, 3) -> p̂ (B, N) or (N), the probability of each vertex being apparel (eq. 2).
+  at::Tensor probabilities(const at::Tensor& V);
+
+  ApparelSegmenterOptions options;
+
+ private:
+  PointNet pointnet_{nullptr};
+};
+TORCH_MODULE(ApparelSegmenter);
+
+}  // namespace amt

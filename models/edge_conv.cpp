@@ -1,0 +1,85 @@
+#include "models/edge_conv.h"
+
+#include <ATen/ATen.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "models/gather_max.h"
+
+namespace amt {
+
+at::Tensor neighbor_table(int64_t num_vertices, const at::Tensor& edges) {
+  TORCH_CHECK(num_vertices >= 0, "neighbor_table: num_vertices must be non-negative");
+  TORCH_CHECK(edges.dim() == 2 && edges.size(1) == 2, "neighbor_table: edges must be (E, 2), got ", edges.sizes());
+  const at::Tensor e = edges.to(at::kLong).contiguous();
+  const int64_t* ep = e.data_ptr<int64_t>();
+  std::vector<std::vector<int64_t>> adjacency(static_cast<size_t>(num_vertices));
+  for (int64_t k = 0; k < e.size(0); ++k) {
+    const int64_t a = ep[2 * k], b = ep[2 * k + 1];
+    TORCH_CHECK(a >= 0 && a < num_vertices && b >= 0 && b < num_vertices, "neighbor_table: edge ", k, " = (", a,
+                ", ", b, ") is outside [0, ", num_vertices, ")");
+    if (a == b) continue;
+    adjacency[a].push_back(b);
+    adjacency[b].push_back(a);
+  }
+  size_t width = 1;
+  for (auto& row : adjacency) {
+    std::sort(row.begin(), row.end());
+    row.erase(std::unique(row.begin(), row.end()), row.end());
+    width = std::max(width, row.size() + 1);
+  }
+  at::Tensor table = at::empty({num_vertices, static_cast<int64_t>(width)}, at::kLong);
+  int64_t* t = table.data_ptr<int64_t>();
+  for (int64_t i = 0; i < num_vertices; ++i) {
+    int64_t* row = t + i * static_cast<int64_t>(width);
+    std::fill(row, row + width, i);  // self first, and self as padding
+    std::copy(adjacency[i].begin(), adjacency[i].end(), row + 1);
+  }
+  return table;
+}
+
+at::Tensor induced_edges(int64_t num_vertices, const at::Tensor& edges, const at::Tensor& vertex_ids) {
+  TORCH_CHECK(edges.dim() == 2 && edges.size(1) == 2, "induced_edges: edges must be (E, 2), got ", edges.sizes());
+  TORCH_CHECK(vertex_ids.dim() == 1, "induced_edges: vertex_ids must be (M), got ", vertex_ids.sizes());
+  const at::Tensor ids = vertex_ids.to(at::kLong);
+  at::Tensor position = at::full({num_vertices}, -1, at::kLong);
+  position.index_put_({ids}, at::arange(ids.size(0), at::kLong));
+  const at::Tensor mapped = position.index_select(0, edges.to(at::kLong).reshape({-1})).view({-1, 2});
+  const at::Tensor keep = (mapped >= 0).all(1);
+  return mapped.index({keep}).contiguous();
+}
+
+EdgeConvImpl::EdgeConvImpl(EdgeConvOptions options_) : options(options_) {
+  TORCH_CHECK(options.in_channels > 0 && options.out_channels > 0, "EdgeConv: channels must be positive");
+  TORCH_CHECK(options.negative_slope >= 0, "EdgeConv: negative_slope must be >= 0 to keep sigma monotonic");
+  edge = register_module("edge", torch::nn::Linear(2 * options.in_channels, options.out_channels));
+}
+
+at::Tensor EdgeConvImpl::forward(const at::Tensor& h, const at::Tensor& neighbors) {
+  return options.naive ? forward_naive(h, neighbors) : forward_factorized(h, neighbors);
+}
+
+at::Tensor EdgeConvImpl::forward_factorized(const at::Tensor& h, const at::Tensor& neighbors) {
+  TORCH_CHECK(h.size(-1) == options.in_channels, "EdgeConv: h must have ", options.in_channels, " channels, got ",
+              h.sizes());
+  const int64_t C = options.in_channels;
+  const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
+  const at::Tensor a = at::linear(h, W1 - W2, edge->bias);  // (..., N, O): (W1 - W2) h_i + b
+  const at::Tensor b = at::linear(h, W2);                   // (..., N, O): W2 h_j, gathered below
+  return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
+}
+
+at::Tensor EdgeConvImpl::forward_naive(const at::Tensor& h, const at::Tensor& neighbors) {
+  TORCH_CHECK(h.size(-1) == options.in_channels, "EdgeConv: h must have ", options.in_channels, " channels, got ",
+              h.sizes());
+  const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;  // (B, N, C)
+  const int64_t B = x.size(0), N = neighbors.size(0), K = neighbors.size(1), C = x.size(2);
+  const at::Tensor hj = x.index_select(1, neighbors.reshape({-1})).view({B, N, K, C});
+  const at::Tensor hi = x.unsqueeze(2).expand({B, N, K, C});
+  const at::Tensor e = at::leaky_relu(edge->forward(at::cat({hi, hj - hi}, -1)), options.negative_slope);
+  const at::Tensor out = e.amax(2);  // eq. (13): max over j in N(i)
+  return h.dim() == 2 ? out.squeeze(0) : out;
+}
+
+}  // namespace amt

@@ -1,0 +1,68 @@
+#pragma once
+// Edge convolution [31] over a fixed mesh graph (paper eq. 13), as one affine edge layer followed
+// by a LeakyReLU (DGCNN's block):
+//   H'_i = max_{j in N(i)} sigma(W [H_i, H_j - H_i] + b).
+// Factorised (DESIGN.md section 1): with W = [W1 | W2], W [h_i, h_j - h_i] + b = (W1 - W2) h_i + b
+// + W2 h_j, so both terms are per-vertex matrix products; and since sigma is monotonic,
+// max_j sigma(a_i + b_j) = sigma(a_i + max_j b_j), a per-vertex product plus one neighbour max.
+#include <torch/nn/module.h>
+#include <torch/nn/modules/linear.h>
+#include <torch/nn/pimpl.h>
+
+#include <cstdint>
+
+namespace amt {
+
+// === Neighbour tables
+
+/// The neighbour table of a graph of `num_vertices` vertices with undirected edges (E, 2) int64:
+/// (N, K_max) int64 where row i is i itself followed by its neighbours (ascending), padded by
+/// repeating i. The self term belongs to N(i) in eq. 13 (the edge (i, i) contributes
+/// sigma(W1 h_i + b)), so padding with i is exact for the max. K_max = 1 + the largest degree.
+/// Duplicate edges and self-loops in `edges` are ignored. Isolated vertices get the row [i].
+at::Tensor neighbor_table(int64_t num_vertices, const at::Tensor& edges);
+
+/// Edges (E, 2) int64 of the subgraph induced by the vertices `vertex_ids` (M) int64 (for example
+/// the apparel vertices): keeps the edges with both ends selected and renumbers their ends to
+/// positions in `vertex_ids`. `num_vertices` is the size of the full graph.
+at::Tensor induced_edges(int64_t num_vertices, const at::Tensor& edges, const at::Tensor& vertex_ids);
+
+// === EdgeConv
+
+/// Configuration of an EdgeConv block.
+struct EdgeConvOptions {
+  EdgeConvOptions(int64_t in, int64_t out) : in_channels(in), out_channels(out) {}
+  /// Channels of H (per vertex, input).
+  int64_t in_channels;
+  /// Channels of H' (per vertex, output).
+  int64_t out_channels;
+  /// Slope of the LeakyReLU sigma (DGCNN uses 0.2). Any slope >= 0 keeps sigma monotonic.
+  double negative_slope = 0.2;
+  /// Evaluate per edge (reference) instead of the factorised per-vertex form. Same weights, same result.
+  bool naive = false;
+};
+
+/// One EdgeConv block over a fixed neighbour table. Its edge layer is a Linear(2 C_in, C_out)
+/// on [h_i, h_j - h_i], whichever form evaluates it.
+class EdgeConvImpl : public torch::nn::Module {
+ public:
+  explicit EdgeConvImpl(EdgeConvOptions options);
+
+  /// h (B, N, C_in) or (N, C_in); neighbors (N, K) int64 from neighbor_table -> (B, N, C_out) or (N, C_out).
+  at::Tensor forward(const at::Tensor& h, const at::Tensor& neighbors);
+
+  /// The factorised form: two per-vertex products and gather_max. Shapes as forward.
+  at::Tensor forward_factorized(const at::Tensor& h, const at::Tensor& neighbors);
+
+  /// The per-edge form: gathers [h_i, h_j - h_i] for every (i, k), applies the edge layer and
+  /// sigma, then the max over k. Shapes as forward.
+  at::Tensor forward_naive(const at::Tensor& h, const at::Tensor& neighbors);
+
+  /// The edge layer: weight (C_out, 2 C_in) = [W1 | W2], bias (C_out).
+  torch::nn::Linear edge{nullptr};
+
+  EdgeConvOptions options;
+};
+TORCH_MODULE(EdgeConv);
+
+}  // namespace amt

@@ -1,0 +1,175 @@
+// The skinning predictor f_s (eq. 5-7): shapes, normalised weights and attention, the Table 4
+// ablations, and a small overfitting run through differentiable LBS.
+#include "models/skinning_predictor.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+#include <torch/optim/adamw.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <cmath>
+
+#include "data_tools/lbs_torch.h"
+#include "models/losses.h"
+
+namespace amt {
+namespace {
+
+struct Inputs {
+  at::Tensor V, joints, G;
+};
+
+Inputs random_inputs(int64_t N, int64_t J) {
+  Inputs in;
+  in.V = at::rand({N, 3}) * at::tensor({0.4f, 1.7f, 0.3f});
+  in.joints = at::rand({J, 3}) * at::tensor({0.4f, 1.7f, 0.3f});
+  in.G = (in.V.unsqueeze(1) - in.joints.unsqueeze(0)).norm(2, -1) * 1.3;  // (N, J), geodesic >= euclidean
+  return in;
+}
+
+void expect_rows_sum_to_one(const at::Tensor& X) {
+  EXPECT_LT((X.sum(-1) - 1).abs().max().item<float>(), 1e-5f);
+  EXPECT_TRUE((X >= 0).all().item<bool>());
+}
+
+TEST(SkinningPredictor, WeightsAndAttentionAreDistributionsOverJoints) {
+  torch::manual_seed(1);
+  SkinningPredictorOptions options;
+  options.num_joints = 22;
+  SkinningPredictor net(options);
+  const Inputs in = random_inputs(20, 22);
+  const SkinningOutput out = net->forward_detailed(in.V, in.joints, in.G);
+  ASSERT_EQ(out.W.sizes(), (at::IntArrayRef{20, 22}));
+  ASSERT_EQ(out.M.sizes(), (at::IntArrayRef{20, 22}));
+  ASSERT_EQ(out.logits.sizes(), (at::IntArrayRef{20, 22}));
+  expect_rows_sum_to_one(out.W);
+  expect_rows_sum_to_one(out.M);
+  EXPECT_TRUE(at::allclose(out.W, net->forward(in.V, in.joints, in.G)));
+}
+
+TEST(SkinningPredictor, BatchedInputGivesTheSameRows) {
+  torch::manual_seed(2);
+  SkinningPredictorOptions options;
+  options.num_joints = 5;
+  SkinningPredictor net(options);
+  const Inputs a = random_inputs(20, 5), b = random_inputs(20, 5);
+  const at::Tensor W = net->forward(at::stack({a.V, b.V}), at::stack({a.joints, b.joints}), at::stack({a.G, b.G}));
+  ASSERT_EQ(W.sizes(), (at::IntArrayRef{2, 20, 5}));
+  EXPECT_LT((W[1] - net->forward(b.V, b.joints, b.G)).abs().max().item<float>(), 1e-5f);
+}
+
+TEST(SkinningPredictor, AblationVariantsGiveValidWeights) {
+  torch::manual_seed(3);
+  const Inputs in = random_inputs(20, 5);
+  for (const SkinningVariant variant : {SkinningVariant::kNoGeodesic, SkinningVariant::kSortByGeodesic}) {
+    SkinningPredictorOptions options;
+    options.num_joints = 5;
+    options.variant = variant;
+    options.sort_k = 3;
+    SkinningPredictor net(options);
+    const SkinningOutput out = net->forward_detailed(in.V, in.joints, in.G);
+    ASSERT_EQ(out.W.sizes(), (at::IntArrayRef{20, 5}));
+    expect_rows_sum_to_one(out.W);
+    if (variant == SkinningVariant::kNoGeodesic) {
+      EXPECT_TRUE(at::allclose(out.M, at::full({20, 5}, 0.2f)));
+      // G is not an input: an undefined G works and changing G changes nothing.
+      EXPECT_TRUE(at::allclose(net->forward(in.V, in.joints, at::Tensor()), out.W));
+    } else {
+      EXPECT_FALSE(out.M.defined());
+      // The sorted variant depends on G.
+      EXPECT_FALSE(at::allclose(net->forward(in.V, in.joints, in.G.flip(1)), out.W));
+    }
+  }
+  // k larger than J is clamped.
+  SkinningPredictorOptions options;
+  options.num_joints = 5;
+  options.variant = SkinningVariant::kSortByGeodesic;
+  options.sort_k = 9;
+  expect_rows_sum_to_one(SkinningPredictor(options)->forward(in.V, in.joints, in.G));
+}
+
+TEST(SkinningPredictor, AttentionFollowsGeodesicDistances) {
+  torch::manual_seed(4);
+  SkinningPredictorOptions options;
+  options.num_joints = 5;
+  SkinningPredictor net(options);
+  const Inputs in = random_inputs(20, 5);
+  const at::Tensor M1 = net->forward_detailed(in.V, in.joints, in.G).M;
+  const at::Tensor M2 = net->forward_detailed(in.V, in.joints, in.G.flip(1)).M;
+  EXPECT_TRUE(at::allclose(M1.flip(1), M2, 1e-5, 1e-6));  // f_m is per entry (with row context)
+  EXPECT_THROW(net->forward(in.V, in.joints, at::Tensor()), c10::Error);
+  EXPECT_THROW(net->forward(in.V, in.joints.narrow(0, 0, 4), in.G), c10::Error);
+}
+
+// Rotation matrix (3, 3) of the axis-angle vector w (3): exp of its skew matrix.
+at::Tensor rotation(const at::Tensor& w) {
+  const at::Tensor zero = at::zeros({});
+  const at::Tensor skew = at::stack({zero, -w[2], w[1], w[2], zero, -w[0], -w[1], w[0], zero}).view({3, 3});
+  return at::linalg_matrix_exp(skew);
+}
+
+TEST(SkinningPredictor, OverfitsOneSyntheticCharacterThroughLbs) {
+  torch::manual_seed(5);
+  const int threads = at::get_num_threads();
+  at::set_num_threads(1);  // tiny tensors: extra threads only add synchronisation
+  const auto start = std::chrono::steady_clock::now();
+  // A bar of 2 x 11 vertices along Y with joints at its bottom, middle and top; hat-function GT weights.
+  const int64_t rows = 11, J = 3;
+  std::vector<float> v, w;
+  for (int64_t r = 0; r < rows; ++r) {
+    for (const float x : {-0.05f, 0.05f}) {
+      const float y = static_cast<float>(r) / (rows - 1);
+      v.insert(v.end(), {x, y, 0.0f});
+      w.insert(w.end(),
+               {std::max(0.0f, 1 - y / 0.5f), 1 - std::abs(y - 0.5f) / 0.5f, std::max(0.0f, (y - 0.5f) / 0.5f)});
+    }
+  }
+  const int64_t N = 2 * rows;
+  const at::Tensor V = at::tensor(v).view({N, 3}), W_gt = at::tensor(w).view({N, J});
+  const at::Tensor joints = at::tensor({0.0f, 0.0f, 0.0f, 0.0f, 0.5f, 0.0f, 0.0f, 1.0f, 0.0f}).view({J, 3});
+  const at::Tensor G = (V.unsqueeze(1) - joints.unsqueeze(0)).norm(2, -1);
+
+  // Frames of a two-link chain: joint 0 fixed, joints 1 and 2 turn by random rotations of about 1 rad.
+  std::vector<at::Tensor> frames;
+  for (int f = 0; f < 8; ++f) {
+    const at::Tensor R1 = rotation(0.6 * at::randn({3})), R2 = at::matmul(R1, rotation(0.6 * at::randn({3})));
+    const at::Tensor t1 = joints[1];
+    const at::Tensor t2 = t1 + at::matmul(R1, joints[2] - joints[1]);
+    frames.push_back(at::stack({at::cat({at::eye(3), joints[0].view({3, 1})}, 1), at::cat({R1, t1.view({3, 1})}, 1),
+                                at::cat({R2, t2.view({3, 1})}, 1)}));
+  }
+  const at::Tensor transforms = at::stack(frames);  // (T, J, 3, 4)
+  const at::Tensor target = linear_blend_skinning(V, W_gt, transforms, joints);
+
+  SkinningPredictorOptions options;
+  options.num_joints = J;
+  options.feature_widths = {32, 32};
+  options.attention_widths = {8};
+  options.head_encoder_widths = {32, 64};
+  options.head_decoder_widths = {32};
+  SkinningPredictor net(options);
+  torch::optim::AdamW optimizer(net->parameters(), torch::optim::AdamWOptions(2e-3).weight_decay(0.0));
+  const auto loss_of = [&] {
+    return vertex_l1_loss(linear_blend_skinning(V, net->forward(V, joints, G), transforms, joints), target);  // eq. (8)
+  };
+  const double initial = loss_of().item<double>();
+  for (int step = 0; step < 500; ++step) {
+    optimizer.zero_grad();
+    const at::Tensor loss = loss_of();
+    loss.backward();
+    optimizer.step();
+  }
+  const double final_loss = loss_of().item<double>();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(final_loss, initial / 10) << "initial " << initial << " final " << final_loss;
+  at::set_num_threads(threads);
+  EXPECT_LT(seconds, 10.0);
+  RecordProperty("initial_loss", std::to_string(initial));
+  RecordProperty("final_loss", std::to_string(final_loss));
+  std::printf("skinning overfit: L1 %.5f -> %.5f in %.2f s\n", initial, final_loss, seconds);
+}
+
+}  // namespace
+}  // namespace amt
