@@ -33,8 +33,10 @@ for target in "${targets[@]}"; do
       cp ../shared/data/pmx/*.pmx "$dir/corpus/" 2>/dev/null || true
       ;;
     gltf)
-      sources=(data_tools/gltf_import.cpp "${core[@]}")
-      libs=(-ltinygltf)
+      # tinygltf compiled into the target, so the fuzzer instruments it too (Debian has no stb_image).
+      sources=(-DAMT_FUZZ_TINYGLTF_FROM_SOURCE -DTINYGLTF_NO_STB_IMAGE -DTINYGLTF_NO_STB_IMAGE_WRITE
+               data_tools/gltf_import.cpp "${core[@]}")
+      libs=()
       cp ../shared/data/characters/*.glb "$dir/corpus/" 2>/dev/null || true
       cp tests/assets/gltf/* "$dir/corpus/" 2>/dev/null || true
       ;;

@@ -29,13 +29,19 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#packages[@]} packages present"
-  exit 0
+else
+  echo "setup: installing ${missing[*]}"
+  sudo_cmd=()
+  if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -q
+  "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-echo "setup: installing ${missing[*]}"
-sudo_cmd=()
-if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
-export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -q
-"${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+# The Khronos glTF validator, pinned by tools/gltf-validator/package-lock.json (the npm registry).
+validator_dir="$(dirname "$0")/../tools/gltf-validator"
+if [ ! -d "$validator_dir/node_modules/gltf-validator" ]; then
+  echo "setup: installing the glTF validator (npm ci in tools/gltf-validator)"
+  (cd "$validator_dir" && npm ci --no-audit --no-fund --loglevel=error)
+fi
 echo "setup: done"
