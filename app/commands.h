@@ -8,6 +8,9 @@ namespace amt::app {
 /// `amt dataset info|...`: inspect and build dataset files (DESIGN.md section 4).
 void add_dataset_command(CLI::App& app);
 
+/// `amt train <module>`: train a module on dataset shards, with checkpoints and resume.
+void add_train_command(CLI::App& app);
+
 /// `amt bench`: speed and memory figures.
 void add_bench_command(CLI::App& app);
 

@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", version_text());
   app.require_subcommand(1);
   amt::app::add_dataset_command(app);
+  amt::app::add_train_command(app);
   amt::app::add_bench_command(app);
   try {
     app.parse(argc, argv);

@@ -34,7 +34,7 @@ PointNetImpl::PointNetImpl(PointNetOptions options_) : options(std::move(options
   MlpOptions global(global_widths);
   global.activate_last = true;
   global.negative_slope = options.negative_slope;
-  global_ = register_module("global", Mlp(global));
+  global_ = register_module("global_mlp", Mlp(global));  // not "global": a Python keyword breaks torch::save
 
   std::vector<int64_t> decoder_widths = {options.encoder_widths.front() + global_widths.back()};
   decoder_widths.insert(decoder_widths.end(), options.decoder_widths.begin(), options.decoder_widths.end());

@@ -1,0 +1,66 @@
+// Network options as JSON (train/module_options.h): every field round-trips, bad fields are named.
+#include "train/module_options.h"
+
+#include <gtest/gtest.h>
+
+#include "data_tools/error.h"
+
+namespace amt {
+namespace {
+
+TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
+  SkinningPredictorOptions s;
+  s.num_joints = 7;
+  s.feature_widths = {3, 5};
+  s.variant = SkinningVariant::kSortByGeodesic;
+  s.negative_slope = 0.1234567890123;
+  s.normalize_input = false;
+  SkinningPredictorOptions s2;
+  options_from_json(options_to_json(s), "x.ckpt", s2);
+  EXPECT_EQ(options_to_json(s2), options_to_json(s));
+  EXPECT_EQ(s2.variant, SkinningVariant::kSortByGeodesic);
+  EXPECT_EQ(s2.negative_slope, s.negative_slope);
+
+  ApparelDisplacementOptions a;
+  a.edge_widths = {4};
+  a.velocity_scale = 3.5;
+  a.root_relative = false;
+  ApparelDisplacementOptions a2;
+  options_from_json(options_to_json(a), "x.ckpt", a2);
+  EXPECT_EQ(a2.edge_widths, a.edge_widths);
+  EXPECT_EQ(a2.velocity_scale, 3.5);
+  EXPECT_FALSE(a2.root_relative);
+
+  JointRefinerOptions r;
+  r.hidden_widths = {9};
+  r.zero_init = false;
+  JointRefinerOptions r2;
+  options_from_json(options_to_json(r), "x.ckpt", r2);
+  EXPECT_EQ(options_to_json(r2), options_to_json(r));
+
+  ApparelSegmenterOptions g;
+  g.encoder_widths = {1, 2, 3};
+  ApparelSegmenterOptions g2;
+  options_from_json(options_to_json(g), "x.ckpt", g2);
+  EXPECT_EQ(g2.encoder_widths, g.encoder_widths);
+}
+
+TEST(ModuleOptions, BadFieldsAreNamed) {
+  JointRefinerOptions r;
+  try {
+    options_from_json("{\"hidden_widths\": [1, \"a\"]}", "x.ckpt", r);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "x.ckpt: options.hidden_widths: expected an array of integers, found [1,\"a\"]");
+  }
+  try {
+    options_from_json("{\"depth\": 3}", "x.ckpt", r);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "x.ckpt: options.depth: unknown field (written by a newer amt?)");
+  }
+  EXPECT_THROW(options_from_json("not json", "x.ckpt", r), Error);
+}
+
+}  // namespace
+}  // namespace amt

@@ -1,0 +1,101 @@
+// Training samples (train/samples.h): shard resolution, missing shards, per-character tensors, and a
+// sample sequence that depends only on (seed, k), not on the loader threads.
+#include "train/samples.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "data_tools/error.h"
+#include "micro_dataset.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The micro dataset, written once per test program.
+const std::string& micro_dataset() {
+  static const std::string path = [] {
+    const std::string p = test::test_directory("amt_samples_test") + "/micro.h5";
+    test::write_micro_dataset(p);
+    return p;
+  }();
+  return path;
+}
+
+TEST(Samples, ResolveShardsListsFolderAndRejectsMissing) {
+  const std::string shard = micro_dataset();
+  const std::string folder = fs::path(shard).parent_path().string();
+  EXPECT_EQ(resolve_shards({folder}), std::vector<std::string>{shard});
+  EXPECT_EQ(resolve_shards({shard}), std::vector<std::string>{shard});
+  try {
+    resolve_shards({shard, folder + "/missing.h5"});
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              folder + "/missing.h5: no such file or folder (expected a dataset shard or a folder of *.h5)");
+  }
+  const std::string empty = test::test_directory("amt_samples_test_empty");
+  EXPECT_THROW(resolve_shards({empty}), Error);
+  SampleSourceOptions options;
+  EXPECT_THROW(SampleSource({folder + "/missing.h5"}, options), Error);
+}
+
+TEST(Samples, FingerprintDependsOnFilesAndJoints) {
+  const std::string a = data_fingerprint({micro_dataset()}, {"x", "y"});
+  EXPECT_EQ(a.rfind("fnv1a64:", 0), 0u);
+  EXPECT_EQ(a.size(), 8u + 16u);
+  EXPECT_EQ(a, data_fingerprint({micro_dataset()}, {"x", "y"}));
+  EXPECT_NE(a, data_fingerprint({micro_dataset()}, {"x", "z"}));
+}
+
+TEST(Samples, CharacterTensorsAreConsistent) {
+  test::use_one_thread();
+  SampleSourceOptions options;
+  options.kind = ModuleKind::kSkinning;
+  options.frames = 4;
+  SampleSource source({micro_dataset()}, options);
+  const auto c = source.character(0);
+  const int64_t N = c->V.size(0), N_a = c->apparel_ids.size(0), N_b = c->body_ids.size(0);
+  EXPECT_GT(N_a, 0);
+  EXPECT_EQ(N_a + N_b, N);
+  EXPECT_EQ(c->joints.sizes(), (at::IntArrayRef{22, 3}));
+  EXPECT_EQ(c->G_body.sizes(), (at::IntArrayRef{N_b, 22}));
+  EXPECT_TRUE(at::isfinite(c->G_body).all().item<bool>());
+  EXPECT_EQ(c->apparel_neighbors.size(0), N_a);
+  EXPECT_LT(c->body_edges.max().item<int64_t>(), N_b);
+  EXPECT_LT(c->apparel_edges.max().item<int64_t>(), N_a);
+  EXPECT_EQ(source.character(0).get(), c.get());  // cached
+
+  const TrainingSample s = source.get(7);
+  EXPECT_EQ(s.joint_transforms.sizes(), (at::IntArrayRef{4, 22, 3, 4}));
+  EXPECT_EQ(s.vertices.sizes(), (at::IntArrayRef{4, N, 3}));
+  EXPECT_EQ(source.num_items(), 2 * (30 - 4 + 1));
+}
+
+TEST(Samples, SequenceDependsOnSeedAndIndexOnly) {
+  SampleSourceOptions options;
+  options.kind = ModuleKind::kApparel;
+  options.seed = 11;
+  SampleSource a({micro_dataset()}, options), b({micro_dataset()}, options);
+  SampleLoader threaded(a, 5, 12, /*threads=*/3, /*prefetch=*/4);
+  SampleLoader inline_loader(b, 5, 12, /*threads=*/0);
+  for (int k = 5; k < 17; ++k) {
+    const TrainingSample x = threaded.next(), y = inline_loader.next();
+    EXPECT_EQ(x.clip, y.clip);
+    EXPECT_EQ(x.first_frame, y.first_frame);
+    EXPECT_TRUE(at::equal(x.vertices, y.vertices));
+    EXPECT_TRUE(at::equal(x.joint_transforms, y.joint_transforms));
+  }
+  EXPECT_THROW(threaded.next(), Error);
+  options.seed = 12;
+  SampleSource c({micro_dataset()}, options);
+  int differ = 0;
+  for (int k = 0; k < 8; ++k) differ += a.get(k).first_frame != c.get(k).first_frame || a.get(k).clip != c.get(k).clip;
+  EXPECT_GT(differ, 0);
+}
+
+}  // namespace
+}  // namespace amt

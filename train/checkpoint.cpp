@@ -1,0 +1,235 @@
+#include "train/checkpoint.h"
+
+#include <torch/serialize/input-archive.h>
+#include <torch/serialize/output-archive.h>
+#include <torch/utils.h>
+
+#include <filesystem>
+#include <sstream>
+
+#include "data_tools/error.h"
+
+namespace amt {
+namespace {
+
+// The first line of an exception message (c10::Error messages carry a stack trace after it).
+std::string first_line(const std::exception& e) {
+  const std::string what = e.what();
+  return what.substr(0, what.find('\n'));
+}
+
+// "a, b, c" of at most `limit` names, then ", ..." when there are more.
+std::string name_list(const std::vector<std::string>& names, size_t limit = 6) {
+  std::ostringstream out;
+  for (size_t i = 0; i < names.size() && i < limit; ++i) out << (i ? ", " : "") << names[i];
+  if (names.size() > limit) out << ", ...";
+  return out.str();
+}
+
+c10::IValue read_key(torch::serialize::InputArchive& archive, const std::string& path, const std::string& key) {
+  c10::IValue value;
+  AMT_CHECK(archive.try_read(key, value), path, ": ", key, ": missing (not an amt checkpoint?)");
+  return value;
+}
+
+std::string read_string(torch::serialize::InputArchive& archive, const std::string& path, const std::string& key) {
+  const c10::IValue value = read_key(archive, path, key);
+  AMT_CHECK(value.isString(), path, ": ", key, ": expected a string, found ", value.tagKind());
+  return value.toStringRef();
+}
+
+int64_t read_int(torch::serialize::InputArchive& archive, const std::string& path, const std::string& key) {
+  const c10::IValue value = read_key(archive, path, key);
+  AMT_CHECK(value.isInt(), path, ": ", key, ": expected an integer, found ", value.tagKind());
+  return value.toInt();
+}
+
+// A list of strings under `key` (`label` names it in messages: a nested key reads "model/...").
+std::vector<std::string> read_names(torch::serialize::InputArchive& archive, const std::string& path,
+                                    const std::string& label, const std::string& key) {
+  c10::IValue value;
+  AMT_CHECK(archive.try_read(key, value), path, ": ", label, ": missing (not an amt checkpoint?)");
+  AMT_CHECK(value.isList(), path, ": ", label, ": expected a list of strings, found ", value.tagKind());
+  std::vector<std::string> names;
+  for (const c10::IValue& name : value.toListRef()) {
+    AMT_CHECK(name.isString(), path, ": ", label, ": expected a list of strings, found an entry ", name.tagKind());
+    names.push_back(name.toStringRef());
+  }
+  return names;
+}
+
+void open_archive(torch::serialize::InputArchive& archive, const std::string& path) {
+  std::error_code error;
+  AMT_CHECK(std::filesystem::is_regular_file(path, error), path, ": no such file (expected an amt checkpoint)");
+  try {
+    archive.load_from(path);
+  } catch (const std::exception& e) {
+    fail(path, ": not an amt checkpoint (", first_line(e), ")");
+  }
+}
+
+// Reads and checks the keys other than model/ and optimizer/.
+CheckpointInfo read_info(torch::serialize::InputArchive& archive, const std::string& path,
+                         std::optional<ModuleKind> expected_kind) {
+  const std::string format = read_string(archive, path, "format");
+  AMT_CHECK(format == kCheckpointFormat, path, ": format: expected '", kCheckpointFormat, "', found '", format, "'");
+  const int64_t version = read_int(archive, path, "version");
+  AMT_CHECK(version == kCheckpointVersion, path, ": version: expected ", kCheckpointVersion, ", found ", version,
+            version > kCheckpointVersion ? " (written by a newer amt)" : "");
+  CheckpointInfo info;
+  info.kind = parse_module_kind(read_string(archive, path, "kind"), path + ": kind");
+  if (expected_kind) {
+    AMT_CHECK(info.kind == *expected_kind, path, ": kind: expected '", module_kind_name(*expected_kind), "', found '",
+              module_kind_name(info.kind), "'");
+  }
+  info.options_json = read_string(archive, path, "options");
+  info.config_json = read_string(archive, path, "config");
+  info.step = read_int(archive, path, "step");
+  AMT_CHECK(info.step >= 0, path, ": step: expected >= 0, found ", info.step);
+  info.data_fingerprint = read_string(archive, path, "data_fingerprint");
+  info.joint_names = read_names(archive, path, "joint_names", "joint_names");
+  return info;
+}
+
+// The model is stored flat: lists of the qualified parameter and buffer names, and the tensors under
+// the keys p<i> and b<i>. (Module::save uses submodule names as TorchScript attribute names, so a
+// submodule named after a Python keyword would make its archive unreadable; this form does not care.)
+void write_model(torch::serialize::OutputArchive& archive, const torch::nn::Module& model) {
+  c10::List<std::string> parameter_names, buffer_names;
+  int64_t i = 0;
+  for (const auto& p : model.named_parameters()) {
+    parameter_names.push_back(p.key());
+    archive.write("p" + std::to_string(i++), p.value().detach());
+  }
+  i = 0;
+  for (const auto& b : model.named_buffers()) {
+    buffer_names.push_back(b.key());
+    archive.write("b" + std::to_string(i++), b.value().detach(), /*is_buffer=*/true);
+  }
+  archive.write("parameter_names", c10::IValue(parameter_names));
+  archive.write("buffer_names", c10::IValue(buffer_names));
+}
+
+// Copies the stored tensors into the model's own (so optimizers keep pointing at them), checking
+// that names and shapes agree with the network built from the checkpoint's options.
+void read_model(torch::serialize::InputArchive& archive, const std::string& path, torch::nn::Module& model) {
+  const auto copy_all = [&](const std::string& kind, const std::string& prefix,
+                            const torch::OrderedDict<std::string, at::Tensor>& tensors, bool is_buffer) {
+    const std::vector<std::string> names = read_names(archive, path, "model/" + kind + "_names", kind + "_names");
+    AMT_CHECK(names.size() == tensors.size(), path, ": model: expected ", tensors.size(), " ", kind, "s, found ",
+              names.size(), " (a network of other options?)");
+    for (size_t i = 0; i < names.size(); ++i) {
+      const std::string& name = tensors.items()[i].key();
+      const at::Tensor& tensor = tensors.items()[i].value();
+      AMT_CHECK(names[i] == name, path, ": model: ", kind, " ", i, ": expected '", name, "', found '", names[i], "'");
+      at::Tensor stored;
+      AMT_CHECK(archive.try_read(prefix + std::to_string(i), stored, is_buffer), path, ": model: ", name, ": missing");
+      AMT_CHECK(stored.sizes() == tensor.sizes(), path, ": model: ", name, ": expected shape ", tensor.sizes(),
+                ", found ", stored.sizes());
+      torch::NoGradGuard no_grad;
+      at::Tensor(tensor).copy_(stored);
+    }
+  };
+  copy_all("parameter", "p", model.named_parameters(), false);
+  copy_all("buffer", "b", model.named_buffers(), true);
+}
+
+}  // namespace
+
+const char* module_kind_name(ModuleKind kind) {
+  switch (kind) {
+    case ModuleKind::kSegmenter:
+      return "segmenter";
+    case ModuleKind::kSkinning:
+      return "skinning";
+    case ModuleKind::kApparel:
+      return "apparel";
+    case ModuleKind::kRefiner:
+      return "refiner";
+  }
+  return "unknown";
+}
+
+ModuleKind parse_module_kind(const std::string& name, const std::string& source) {
+  for (ModuleKind kind : {ModuleKind::kSegmenter, ModuleKind::kSkinning, ModuleKind::kApparel, ModuleKind::kRefiner}) {
+    if (name == module_kind_name(kind)) return kind;
+  }
+  fail(source, ": expected segmenter, skinning, apparel or refiner, found '", name, "'");
+}
+
+void save_checkpoint(const std::string& path, const CheckpointInfo& info, const torch::nn::Module& model,
+                     const torch::optim::Optimizer* optimizer) {
+  torch::serialize::OutputArchive archive;
+  archive.write("format", c10::IValue(std::string(kCheckpointFormat)));
+  archive.write("version", c10::IValue(kCheckpointVersion));
+  archive.write("kind", c10::IValue(std::string(module_kind_name(info.kind))));
+  archive.write("options", c10::IValue(info.options_json));
+  archive.write("config", c10::IValue(info.config_json));
+  archive.write("step", c10::IValue(info.step));
+  archive.write("data_fingerprint", c10::IValue(info.data_fingerprint));
+  c10::List<std::string> names;
+  for (const auto& name : info.joint_names) names.push_back(name);
+  archive.write("joint_names", c10::IValue(names));
+
+  torch::serialize::OutputArchive model_archive(archive.compilation_unit());
+  write_model(model_archive, model);
+  archive.write("model", model_archive);
+  if (optimizer) {
+    torch::serialize::OutputArchive optimizer_archive(archive.compilation_unit());
+    optimizer->save(optimizer_archive);
+    archive.write("optimizer", optimizer_archive);
+  }
+
+  const std::string temporary = path + ".tmp";
+  try {
+    archive.save_to(temporary);
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(temporary, ignored);
+    fail(temporary, ": cannot write the checkpoint (", first_line(e), ")");
+  }
+  std::error_code error;
+  std::filesystem::rename(temporary, path, error);
+  if (error) {
+    std::filesystem::remove(temporary, error);
+    fail(path, ": cannot replace the checkpoint with ", temporary, " (", error.message(), ")");
+  }
+}
+
+CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<ModuleKind> expected_kind) {
+  torch::serialize::InputArchive archive;
+  open_archive(archive, path);
+  return read_info(archive, path, expected_kind);
+}
+
+CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind, torch::nn::Module& model,
+                               torch::optim::Optimizer* optimizer) {
+  torch::serialize::InputArchive archive;
+  open_archive(archive, path);
+  CheckpointInfo info = read_info(archive, path, expected_kind);
+
+  torch::serialize::InputArchive model_archive;
+  AMT_CHECK(archive.try_read("model", model_archive), path, ": model: missing");
+  read_model(model_archive, path, model);
+
+  if (optimizer) {
+    torch::serialize::InputArchive optimizer_archive;
+    AMT_CHECK(archive.try_read("optimizer", optimizer_archive), path,
+              ": optimizer: missing (a model-only checkpoint cannot resume training)");
+    try {
+      optimizer->load(optimizer_archive);
+    } catch (const std::exception& e) {
+      fail(path, ": optimizer: does not match the model's parameters (", first_line(e), ")");
+    }
+  }
+  return info;
+}
+
+void check_checkpoint_skeleton(const std::string& path, const CheckpointInfo& info,
+                               const std::vector<std::string>& dataset_joint_names) {
+  AMT_CHECK(info.joint_names == dataset_joint_names, path, ": skeleton: the checkpoint was trained on ",
+            info.joint_names.size(), " joints (", name_list(info.joint_names), "), the dataset has ",
+            dataset_joint_names.size(), " (", name_list(dataset_joint_names), ")");
+}
+
+}  // namespace amt

@@ -1,0 +1,85 @@
+#pragma once
+// Training checkpoints: one self-describing file per trained module, format "amt-checkpoint",
+// version 1, written through torch::serialize::OutputArchive (a TorchScript zip archive) to
+// "<path>.tmp" and renamed onto the target, so an interrupted save never replaces a good file.
+//
+// Keys of the archive:
+//   format "amt-checkpoint", version 1, kind ("segmenter" | "skinning" | "apparel" | "refiner"),
+//   options (the network's options, JSON text: train/module_options.h), config (the training
+//   run's settings, JSON text), step (optimizer steps taken), joint_names (J strings: the skeleton
+//   the module was trained on), data_fingerprint (data_fingerprint() of the training shards),
+//   model/ (parameter_names and buffer_names, the qualified names of the module's tensors, and the
+//   tensors themselves under p0, p1, ... and b0, b1, ...), optimizer/ (Optimizer::save; absent in a
+//   model-only file).
+// No random-number state is stored: a training step draws no random numbers, and the samples of a
+// step are a function of (seed, step) alone (train/samples.h), so step and seed resume a run exactly.
+#include <torch/nn/module.h>
+#include <torch/optim/optimizer.h>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace amt {
+
+// === Format
+
+/// Value of the key `format`.
+inline constexpr const char* kCheckpointFormat = "amt-checkpoint";
+/// Value of the key `version` this code writes and reads.
+inline constexpr int64_t kCheckpointVersion = 1;
+
+/// The module a checkpoint holds (DESIGN.md section 1).
+enum class ModuleKind { kSegmenter, kSkinning, kApparel, kRefiner };
+
+/// "segmenter", "skinning", "apparel" or "refiner".
+const char* module_kind_name(ModuleKind kind);
+
+/// Inverse of module_kind_name; throws amt::Error "<source>: expected segmenter, skinning, apparel or
+/// refiner, found 'x'".
+ModuleKind parse_module_kind(const std::string& name, const std::string& source);
+
+// === Contents
+
+/// Everything in a checkpoint besides the tensors.
+struct CheckpointInfo {
+  /// The module the file holds.
+  ModuleKind kind = ModuleKind::kSegmenter;
+  /// The network's options as JSON text (options_to_json); rebuilds the network before loading.
+  std::string options_json;
+  /// The training run's settings as JSON text (TrainOptions, train/trainer.h), kept for the record.
+  std::string config_json;
+  /// Optimizer steps taken when the file was written.
+  int64_t step = 0;
+  /// J joint names of the skeleton the module was trained on.
+  std::vector<std::string> joint_names;
+  /// data_fingerprint() of the shards the module was trained on.
+  std::string data_fingerprint;
+};
+
+// === Save and load
+
+/// Writes `info`, the parameters and buffers of `model` and, when not null, the state of `optimizer`
+/// to `path` (through "<path>.tmp", then renamed). Throws amt::Error when the file cannot be written.
+void save_checkpoint(const std::string& path, const CheckpointInfo& info, const torch::nn::Module& model,
+                     const torch::optim::Optimizer* optimizer);
+
+/// Reads the info of a checkpoint without touching any model, checking the format, the version and,
+/// when `expected_kind` is given, the kind. Errors name the file and the key:
+/// "x.ckpt: kind: expected 'skinning', found 'segmenter'", "x.ckpt: version: expected 1, found 2".
+CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<ModuleKind> expected_kind = std::nullopt);
+
+/// Loads a checkpoint of kind `expected_kind` into `model`, which must have been built from the
+/// checkpoint's options (read_checkpoint_info first): every parameter and buffer must exist with the
+/// stored shape. When `optimizer` is not null, its state is restored too (the file must hold one; the
+/// optimizer must be over model->parameters() in the same order). Returns the info.
+CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind, torch::nn::Module& model,
+                               torch::optim::Optimizer* optimizer);
+
+/// Throws amt::Error unless the checkpoint was trained on `dataset_joint_names` (same names, same
+/// order): "x.ckpt: skeleton: the checkpoint was trained on N joints (a, b, ...), the dataset has M (...)".
+void check_checkpoint_skeleton(const std::string& path, const CheckpointInfo& info,
+                               const std::vector<std::string>& dataset_joint_names);
+
+}  // namespace amt

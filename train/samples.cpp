@@ -1,0 +1,347 @@
+#include "train/samples.h"
+
+#include <ATen/ATen.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <iomanip>
+#include <sstream>
+
+#include "data_tools/dataset_file.h"
+#include "data_tools/error.h"
+#include "data_tools/geodesic.h"
+#include "data_tools/mesh.h"
+#include "models/edge_conv.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+at::Tensor float_tensor(const float* data, std::vector<int64_t> shape) {
+  return at::from_blob(const_cast<float*>(data), shape, at::kFloat).clone();
+}
+
+at::Tensor edge_tensor(const MatrixX2i& E) {
+  if (E.rows() == 0) return at::zeros({0, 2}, at::kLong);
+  return at::from_blob(const_cast<int32_t*>(E.data()), {E.rows(), 2}, at::kInt).to(at::kLong);
+}
+
+// (count, J, 3, 4) from count * J transforms, frame-major.
+at::Tensor transforms_tensor(const Transforms& transforms, int count, int J) {
+  at::Tensor out = at::empty({count, J, 3, 4}, at::kFloat);
+  float* dst = out.data_ptr<float>();
+  for (size_t i = 0; i < transforms.size(); ++i) std::memcpy(dst + 12 * i, transforms[i].data(), 12 * sizeof(float));
+  return out;
+}
+
+// FNV-1a over bytes.
+void fnv1a(uint64_t& hash, const void* data, size_t size) {
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < size; ++i) hash = (hash ^ bytes[i]) * 0x100000001B3ull;
+}
+
+}  // namespace
+
+// === Shards
+
+std::vector<std::string> resolve_shards(const std::vector<std::string>& inputs) {
+  AMT_CHECK(!inputs.empty(), "--data: expected at least one dataset file or folder, found none");
+  std::vector<std::string> shards;
+  for (const std::string& input : inputs) {
+    std::error_code error;
+    AMT_CHECK(fs::exists(input, error), input,
+              ": no such file or folder (expected a dataset shard or a folder of *.h5)");
+    if (!fs::is_directory(input, error)) {
+      shards.push_back(input);
+      continue;
+    }
+    std::vector<std::string> found;
+    for (const auto& entry : fs::directory_iterator(input)) {
+      if (entry.is_regular_file() && entry.path().extension() == ".h5") found.push_back(entry.path().string());
+    }
+    AMT_CHECK(!found.empty(), input, ": no shards (expected *.h5 dataset files)");
+    std::sort(found.begin(), found.end());
+    shards.insert(shards.end(), found.begin(), found.end());
+  }
+  return shards;
+}
+
+std::string data_fingerprint(const std::vector<std::string>& shards, const std::vector<std::string>& joint_names) {
+  uint64_t hash = 0xCBF29CE484222325ull;
+  for (const std::string& shard : shards) {
+    std::error_code error;
+    const uintmax_t size = fs::file_size(shard, error);
+    AMT_CHECK(!error, shard, ": no such shard (", error.message(), ")");
+    const std::string name = fs::path(shard).filename().string();
+    fnv1a(hash, name.data(), name.size() + 1);
+    const uint64_t size64 = size;
+    fnv1a(hash, &size64, sizeof(size64));
+  }
+  for (const std::string& joint : joint_names) fnv1a(hash, joint.data(), joint.size() + 1);
+  std::ostringstream out;
+  out << "fnv1a64:" << std::hex << std::setw(16) << std::setfill('0') << hash;
+  return out.str();
+}
+
+// === SampleSource
+
+struct SampleSource::Character {
+  int shard = 0;
+  std::string name;
+  CharacterSummary summary;
+  std::once_flag once;
+  std::shared_ptr<const CharacterTensors> tensors;
+};
+
+struct SampleSource::Clip {
+  int shard = 0;
+  std::string name;
+  int character = 0;
+  int num_frames = 0;
+  std::string split;
+};
+
+// One reader per shard, opened on first use by the thread that borrowed the set.
+struct SampleSource::Readers {
+  std::vector<std::unique_ptr<DatasetReader>> per_shard;
+  DatasetReader& at(int shard, const std::vector<std::string>& paths) {
+    if (!per_shard[shard]) per_shard[shard] = std::make_unique<DatasetReader>(paths[shard]);
+    return *per_shard[shard];
+  }
+};
+
+SampleSource::SampleSource(std::vector<std::string> shards, SampleSourceOptions options)
+    : shards_(std::move(shards)), options_(std::move(options)) {
+  AMT_CHECK(!shards_.empty(), "training data: expected at least one shard, found none");
+  AMT_CHECK(options_.kind == ModuleKind::kSegmenter || options_.frames >= 1, "training data: window frames: expected ",
+            ">= 1, found ", options_.frames);
+  auto readers = std::make_unique<Readers>();
+  readers->per_shard.resize(shards_.size());
+  for (size_t s = 0; s < shards_.size(); ++s) {
+    std::error_code error;
+    AMT_CHECK(fs::is_regular_file(shards_[s], error), shards_[s], ": no such shard (expected an amt-dataset file)");
+    DatasetReader& reader = readers->at(static_cast<int>(s), shards_);
+    if (s == 0) {
+      joint_names_ = reader.joint_names();
+    } else {
+      AMT_CHECK(reader.joint_names() == joint_names_, shards_[s], ": skeleton: expected the ", joint_names_.size(),
+                " joints of ", shards_[0], ", found ", reader.joint_names().size(), " different ones");
+    }
+    std::map<std::string, int> index_of;
+    for (const std::string& name : reader.character_names()) {
+      auto c = std::make_unique<Character>();
+      c->shard = static_cast<int>(s);
+      c->name = name;
+      c->summary = reader.character_summary(name);
+      index_of[name] = static_cast<int>(characters_.size());
+      characters_.push_back(std::move(c));
+    }
+    for (const std::string& name : reader.clip_names()) {
+      const ClipInfo info = reader.clip_info(name);
+      clips_.push_back({static_cast<int>(s), name, index_of.at(info.character), info.num_frames, info.split});
+    }
+  }
+  fingerprint_ = data_fingerprint(shards_, joint_names_);
+
+  item_offsets_.push_back(0);
+  if (options_.kind == ModuleKind::kSegmenter) {
+    for (size_t c = 0; c < characters_.size(); ++c) {
+      if (characters_[c]->summary.split != options_.split) continue;
+      items_.push_back(static_cast<int>(c));
+      item_offsets_.push_back(item_offsets_.back() + 1);
+    }
+  } else {
+    for (size_t k = 0; k < clips_.size(); ++k) {
+      const Clip& clip = clips_[k];
+      const CharacterSummary& summary = characters_[clip.character]->summary;
+      if (clip.split != options_.split || clip.num_frames < options_.frames) continue;
+      if (options_.kind == ModuleKind::kApparel && summary.num_apparel_vertices == 0) continue;
+      if (options_.kind == ModuleKind::kSkinning && summary.num_apparel_vertices == summary.num_vertices) continue;
+      items_.push_back(static_cast<int>(k));
+      item_offsets_.push_back(item_offsets_.back() + clip.num_frames - options_.frames + 1);
+    }
+  }
+  num_items_ = item_offsets_.back();
+  const char* what = options_.kind == ModuleKind::kSegmenter  ? " characters"
+                     : options_.kind == ModuleKind::kApparel  ? " clips with apparel vertices of at least "
+                     : options_.kind == ModuleKind::kSkinning ? " clips with body vertices of at least "
+                                                              : " clips of at least ";
+  AMT_CHECK(num_items_ > 0, shards_[0], (shards_.size() > 1 ? " (and the other shards)" : ""), ": no ", options_.split,
+            what, (options_.kind == ModuleKind::kSegmenter ? "" : std::to_string(options_.frames) + " frames"),
+            " (needed to train the ", module_kind_name(options_.kind), " module)");
+  give_back(std::move(readers));
+}
+
+SampleSource::~SampleSource() = default;
+
+std::unique_ptr<SampleSource::Readers> SampleSource::borrow_readers() {
+  std::lock_guard<std::mutex> lock(pool_mutex_);
+  if (pool_.empty()) {
+    auto readers = std::make_unique<Readers>();
+    readers->per_shard.resize(shards_.size());
+    return readers;
+  }
+  auto readers = std::move(pool_.back());
+  pool_.pop_back();
+  return readers;
+}
+
+void SampleSource::give_back(std::unique_ptr<Readers> readers) {
+  std::lock_guard<std::mutex> lock(pool_mutex_);
+  pool_.push_back(std::move(readers));
+}
+
+std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, Readers& readers) {
+  Character& c = *characters_.at(index);
+  std::call_once(c.once, [&] {
+    const CharacterData data = readers.at(c.shard, shards_).read_character(c.name);
+    auto t = std::make_shared<CharacterTensors>();
+    t->shard = shards_[c.shard];
+    t->name = c.name;
+    const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
+    t->V = float_tensor(data.mesh.V.data(), {N, 3});
+    t->joints = float_tensor(data.skeleton.rest_joints.data(), {J, 3});
+    t->edges = edge_tensor(unique_edges(data.mesh.F));
+    t->apparel_mask = at::from_blob(const_cast<uint8_t*>(data.apparel_mask.data()), {N}, at::kByte).to(at::kBool);
+    t->apparel_ids = at::nonzero(t->apparel_mask).flatten();
+    t->body_ids = at::nonzero(t->apparel_mask.logical_not()).flatten();
+    t->body_weights = float_tensor(data.body_weights.data(), {N, J});
+    t->body_edges = induced_edges(N, t->edges, t->body_ids);
+    t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
+    t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
+    if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
+      // The body mesh: body vertices and the faces whose three corners are body vertices.
+      std::vector<int32_t> body_index(N, -1);
+      const int64_t N_b = t->body_ids.size(0);
+      MatrixX3f V_b(N_b, 3);
+      const int64_t* ids = t->body_ids.data_ptr<int64_t>();
+      for (int64_t i = 0; i < N_b; ++i) {
+        body_index[ids[i]] = static_cast<int32_t>(i);
+        V_b.row(i) = data.mesh.V.row(ids[i]);
+      }
+      std::vector<int32_t> faces;
+      for (int f = 0; f < data.mesh.num_faces(); ++f) {
+        const int32_t a = body_index[data.mesh.F(f, 0)], b = body_index[data.mesh.F(f, 1)],
+                      d = body_index[data.mesh.F(f, 2)];
+        if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
+      }
+      AMT_CHECK(!faces.empty(), shards_[c.shard], ": /characters/", c.name, ": faces: the skinning module needs ",
+                "faces between body vertices, found none");
+      const MatrixX3i F_b = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+      const MatrixXfR G = geodesic_distances(V_b, F_b, data.skeleton.rest_joints);
+      t->G_body = float_tensor(G.data(), {N_b, J});
+    }
+    c.tensors = std::move(t);
+  });
+  return c.tensors;
+}
+
+std::shared_ptr<const CharacterTensors> SampleSource::character(int index) {
+  AMT_CHECK(index >= 0 && index < static_cast<int>(characters_.size()), "training data: character index: expected [0, ",
+            characters_.size(), "), found ", index);
+  auto readers = borrow_readers();
+  auto tensors = load_character(index, *readers);
+  give_back(std::move(readers));
+  return tensors;
+}
+
+TrainingSample SampleSource::get(int64_t k) {
+  const uint64_t hash = splitmix64(options_.seed ^ splitmix64(static_cast<uint64_t>(k)));
+  const int64_t r = static_cast<int64_t>(hash % static_cast<uint64_t>(num_items_));
+  const size_t item = std::upper_bound(item_offsets_.begin(), item_offsets_.end(), r) - item_offsets_.begin() - 1;
+  auto readers = borrow_readers();
+  TrainingSample sample;
+  try {
+    if (options_.kind == ModuleKind::kSegmenter) {
+      sample.character = load_character(items_[item], *readers);
+    } else {
+      const Clip& clip = clips_[items_[item]];
+      sample.character = load_character(clip.character, *readers);
+      sample.clip = clip.name;
+      sample.first_frame = static_cast<int>(r - item_offsets_[item]);
+      DatasetReader& reader = readers->at(clip.shard, shards_);
+      const int F = options_.frames, J = static_cast<int>(joint_names_.size());
+      sample.joint_transforms = transforms_tensor(reader.read_joint_transforms(clip.name, sample.first_frame, F), F, J);
+      const MatrixX3f vertices = reader.read_vertices(clip.name, sample.first_frame, F);
+      sample.vertices = float_tensor(vertices.data(), {F, vertices.rows() / F, 3});
+    }
+  } catch (...) {
+    give_back(std::move(readers));
+    throw;
+  }
+  give_back(std::move(readers));
+  return sample;
+}
+
+// === SampleLoader
+
+SampleLoader::SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads, int prefetch)
+    : source_(source),
+      end_(first + count),
+      prefetch_(std::max(1, prefetch)),
+      next_to_read_(first),
+      next_to_deliver_(first) {
+  for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
+}
+
+SampleLoader::~SampleLoader() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  changed_.notify_all();
+  for (auto& worker : workers_) worker.join();
+}
+
+void SampleLoader::work() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    changed_.wait(
+        lock, [this] { return stopping_ || (next_to_read_ < end_ && next_to_read_ < next_to_deliver_ + prefetch_); });
+    if (stopping_) return;
+    const int64_t k = next_to_read_++;
+    lock.unlock();
+    TrainingSample sample;
+    std::exception_ptr error;
+    try {
+      sample = source_.get(k);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    lock.lock();
+    if (error) {
+      errors_[k] = error;
+    } else {
+      ready_[k] = std::move(sample);
+    }
+    changed_.notify_all();
+  }
+}
+
+TrainingSample SampleLoader::next() {
+  AMT_CHECK(next_to_deliver_ < end_, "training data: sample ", next_to_deliver_, ": past the loader's end ", end_);
+  const int64_t k = next_to_deliver_;
+  if (workers_.empty()) {
+    ++next_to_deliver_;
+    return source_.get(k);
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return ready_.count(k) != 0 || errors_.count(k) != 0; });
+  ++next_to_deliver_;
+  changed_.notify_all();
+  if (auto it = errors_.find(k); it != errors_.end()) std::rethrow_exception(it->second);
+  TrainingSample sample = std::move(ready_.at(k));
+  ready_.erase(k);
+  return sample;
+}
+
+}  // namespace amt

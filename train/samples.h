@@ -1,0 +1,181 @@
+#pragma once
+// Training samples streamed from dataset shards (DESIGN.md section 4): per-character tensors
+// computed once from the rest mesh and cached, and per-sample frame windows read from HDF5 as
+// hyperslabs (a clip is never loaded whole). Which sample comes k-th is a pure function of
+// (seed, k), so a run resumed at step s sees exactly the samples an uninterrupted run sees; the
+// prefetching loader threads change only when a sample is read, never which.
+#include <ATen/core/Tensor.h>
+
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "train/checkpoint.h"
+
+namespace amt {
+
+// === Shards
+
+/// The shard files named by `inputs`, in the given order: a file stays as it is, a directory is
+/// replaced by its *.h5 files sorted by name. Throws amt::Error for no inputs, a missing path or a
+/// directory without *.h5 files ("data/: no shards (expected *.h5 dataset files)").
+std::vector<std::string> resolve_shards(const std::vector<std::string>& inputs);
+
+/// A fingerprint of a training set: "fnv1a64:<16 hex digits>" over each shard's file name (without
+/// its folder, so moving the data keeps it), its size in bytes, and the J joint names. Throws
+/// amt::Error when a shard is missing.
+std::string data_fingerprint(const std::vector<std::string>& shards, const std::vector<std::string>& joint_names);
+
+// === Per-character tensors
+
+/// What the trainers need from one character's rest mesh; computed once and shared (read-only).
+struct CharacterTensors {
+  /// Shard file and character group name.
+  std::string shard, name;
+  /// V (N, 3) float rest positions, metres.
+  at::Tensor V;
+  /// joints (J, 3) float rest joint positions, metres.
+  at::Tensor joints;
+  /// edges (E, 2) int64 unique mesh edges (i < j).
+  at::Tensor edges;
+  /// apparel_mask (N) bool, true for apparel vertices.
+  at::Tensor apparel_mask;
+  /// apparel_ids (N_a) and body_ids (N_b) int64 vertex indices of the two parts, ascending.
+  at::Tensor apparel_ids, body_ids;
+  /// body_weights (N, J) float ground-truth skinning weights, rows sum to 1.
+  at::Tensor body_weights;
+  /// body_edges (E_b, 2) int64 mesh edges between body vertices, numbered by position in body_ids.
+  at::Tensor body_edges;
+  /// apparel_edges (E_a, 2) int64 mesh edges between apparel vertices, numbered by position in apparel_ids.
+  at::Tensor apparel_edges;
+  /// apparel_neighbors (N_a, K_max) int64 neighbour table of the apparel graph (neighbor_table).
+  at::Tensor apparel_neighbors;
+  /// G_body (N_b, J) float geodesic distances (metres) over the body mesh, the faces whose three
+  /// vertices are body vertices (geodesic_distances); computed only for the skinning module, else undefined.
+  at::Tensor G_body;
+};
+
+// === Samples
+
+/// One training sample: a character and, except for the segmenter, a window of consecutive frames.
+struct TrainingSample {
+  /// The character, shared with every other sample of it.
+  std::shared_ptr<const CharacterTensors> character;
+  /// The clip the frames come from (empty for the segmenter) and the window's first frame.
+  std::string clip;
+  int first_frame = 0;
+  /// joint_transforms (F, J, 3, 4) float [R_j | t_j] of the window's frames (F = 0: undefined).
+  at::Tensor joint_transforms;
+  /// vertices (F, N, 3) float ground-truth positions of the window's frames (F = 0: undefined).
+  at::Tensor vertices;
+};
+
+/// What a SampleSource draws.
+struct SampleSourceOptions {
+  /// The module the samples are for: the segmenter draws characters; skinning draws windows of
+  /// clips of characters with body vertices; apparel windows of characters with apparel vertices;
+  /// the refiner windows of any clip.
+  ModuleKind kind = ModuleKind::kSegmenter;
+  /// F, frames per window (ignored by the segmenter). Clips shorter than F are skipped.
+  int frames = 10;
+  /// Only characters (segmenter) or clips (others) of this split are drawn.
+  std::string split = "train";
+  /// Seed of the sample order.
+  uint64_t seed = 1;
+  /// Compute CharacterTensors::G_body for every module, not only for skinning (the refiner needs it
+  /// when B̂ comes from a trained skinning predictor).
+  bool geodesics = false;
+};
+
+/// Samples over one or more shards. Opening reads only attributes, clip infos and apparel masks;
+/// character tensors are computed on first use and cached; frames are read per sample. get() is
+/// thread-safe: each call borrows one set of DatasetReaders (one per shard) from a pool, since a
+/// reader is not thread-safe.
+class SampleSource {
+ public:
+  /// Opens the shards and lists what `options` can draw. Throws amt::Error for a missing shard,
+  /// shards with different skeletons, or nothing to draw.
+  SampleSource(std::vector<std::string> shards, SampleSourceOptions options);
+  ~SampleSource();
+  SampleSource(const SampleSource&) = delete;
+  SampleSource& operator=(const SampleSource&) = delete;
+
+  /// The shard files.
+  const std::vector<std::string>& shards() const { return shards_; }
+  /// The J joint names every shard uses.
+  const std::vector<std::string>& joint_names() const { return joint_names_; }
+  /// data_fingerprint(shards(), joint_names()).
+  const std::string& fingerprint() const { return fingerprint_; }
+  /// The options.
+  const SampleSourceOptions& options() const { return options_; }
+  /// Number of distinct samples: characters for the segmenter, windows (clip, first frame) otherwise.
+  int64_t num_items() const { return num_items_; }
+
+  /// Sample k: item hash(seed, k) mod num_items(). Identical for identical (seed, k, shards).
+  TrainingSample get(int64_t k);
+
+  /// The cached tensors of character `index` (0 .. number of characters), computed on first use.
+  std::shared_ptr<const CharacterTensors> character(int index);
+
+ private:
+  struct Character;
+  struct Clip;
+  struct Readers;
+  std::unique_ptr<Readers> borrow_readers();
+  void give_back(std::unique_ptr<Readers> readers);
+  std::shared_ptr<const CharacterTensors> load_character(int index, Readers& readers);
+
+  std::vector<std::string> shards_;
+  SampleSourceOptions options_;
+  std::vector<std::string> joint_names_;
+  std::string fingerprint_;
+  std::vector<std::unique_ptr<Character>> characters_;
+  std::vector<Clip> clips_;
+  // Drawable items: characters (segmenter) or clips, with the cumulative count of windows before each.
+  std::vector<int> items_;
+  std::vector<int64_t> item_offsets_;
+  int64_t num_items_ = 0;
+  std::mutex pool_mutex_;
+  std::vector<std::unique_ptr<Readers>> pool_;
+};
+
+// === Prefetching loader
+
+/// Delivers samples first .. first + count - 1 of a source in order, read ahead by `threads` worker
+/// threads (0: read in next() on the calling thread) at most `prefetch` samples ahead. The sequence is
+/// that of source.get(k) whatever the threads do. The source must outlive the loader.
+class SampleLoader {
+ public:
+  /// Starts `threads` workers on samples [first, first + count) of `source`.
+  SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads = 2, int prefetch = 8);
+  /// Stops and joins the workers.
+  ~SampleLoader();
+  SampleLoader(const SampleLoader&) = delete;
+  SampleLoader& operator=(const SampleLoader&) = delete;
+
+  /// The next sample; rethrows an error a worker met reading it. Throws amt::Error past the end.
+  TrainingSample next();
+
+ private:
+  void work();
+
+  SampleSource& source_;
+  int64_t end_;
+  int prefetch_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  int64_t next_to_read_;
+  int64_t next_to_deliver_;
+  bool stopping_ = false;
+  std::map<int64_t, TrainingSample> ready_;
+  std::map<int64_t, std::exception_ptr> errors_;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace amt
