@@ -1,7 +1,4 @@
 // amt: apparel-aware motion transfer. Thin program over the folder libraries; see README.md.
-#include <ATen/Parallel.h>
-#include <omp.h>
-
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <H5public.h>
@@ -12,6 +9,7 @@
 #include "amt/version.h"
 #include "app/commands.h"
 #include "data_tools/error.h"
+#include "data_tools/threads.h"
 
 namespace amt::app {
 
@@ -19,11 +17,7 @@ void add_threads_option(CLI::App& command) {
   auto* threads = command.add_option("--threads", "Worker threads (default: all cores)")
                       ->check(CLI::Range(1, 1024))
                       ->default_val(std::max(1u, std::thread::hardware_concurrency()));
-  command.parse_complete_callback([threads] {
-    const int n = threads->as<int>();
-    omp_set_num_threads(n);
-    at::set_num_threads(n);
-  });
+  command.parse_complete_callback([threads] { set_thread_count(threads->as<int>()); });
 }
 
 }  // namespace amt::app

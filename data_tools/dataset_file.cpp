@@ -8,6 +8,7 @@
 #include <unordered_set>
 #include <utility>
 
+#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 #include "data_tools/hdf5_handle.h"
 
@@ -325,7 +326,7 @@ struct DatasetWriter::Impl {
   h5::Dataset joint_dataset;
   h5::Dataset truth_dataset;
 
-  explicit Impl(const std::string& target) : path(target), temporary(target + ".tmp") {}
+  explicit Impl(const std::string& target) : path(target), temporary(amt::temporary_path(target)) {}
 
   // Without a successful commit, the temporary file goes; the target is never touched.
   ~Impl() {
@@ -394,6 +395,7 @@ DatasetWriter::DatasetWriter(const std::string& path, float fps, const std::vect
   const h5::QuietErrors quiet;
   check_fps(fps, path);
   check_joint_names(joint_names, path);
+  create_parent_folder(path);
   impl_ = std::make_unique<Impl>(path);
   impl_->fps = fps;
   impl_->joint_names = joint_names;
@@ -565,9 +567,7 @@ void DatasetWriter::commit() {
   w.clips.reset();
   w.characters.reset();
   if (w.file.close() < 0) h5::fail_hdf5(w.path, "cannot close the temporary file " + w.temporary);
-  std::error_code error;
-  fs::rename(w.temporary, w.path, error);
-  AMT_CHECK(!error, w.path, ": cannot rename the temporary file ", w.temporary, " onto it: ", error.message());
+  replace_with_temporary(w.temporary, w.path);
   w.committed = true;
 }
 

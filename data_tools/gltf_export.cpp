@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "amt/version.h"
+#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 
 namespace amt {
@@ -169,25 +170,7 @@ void write_model(const std::string& path, ModelBuilder& builder, GltfContainer c
   AMT_CHECK(writer.WriteGltfSceneToStream(&model, stream, false, binary), path,
             ": write: expected tinygltf to serialise the model, found an error");
   const std::string content = stream.str();
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": file: expected a writable file, found none (missing folder or permissions?)");
-    out.write(content.data(), std::streamsize(content.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(temporary, ignored);
-      fail(temporary, ": write: expected ", content.size(), " bytes written, found a write error (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
-    fail(path, ": rename: expected to replace the file with ", temporary, ", found error: ", ec.message());
-  }
+  write_file_atomically(path, content);
 }
 
 void check_fps(float fps, const std::string& path) {

@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "amt/version.h"
+#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 
 namespace amt {
@@ -32,28 +33,6 @@ std::string read_text(const std::string& path, const char* what) {
   return text.str();
 }
 
-// Writes text to "<path>.tmp" and renames it onto path.
-void write_text_atomically(const std::string& path, const std::string& text) {
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": file: expected a writable file, found none (missing folder or permissions?)");
-    out.write(text.data(), std::streamsize(text.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(temporary, ignored);
-      fail(temporary, ": write: expected ", text.size(), " bytes written, found a write error (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
-    fail(path, ": rename: expected to replace the file with ", temporary, ", found error: ", ec.message());
-  }
-}
 
 std::string first_line(const std::string& s) {
   const size_t end = s.find_first_of("\r\n");
@@ -216,7 +195,7 @@ void write_obj(const std::string& path, const TriMesh& mesh) {
     std::snprintf(line, sizeof(line), "f %d %d %d\n", mesh.F(f, 0) + 1, mesh.F(f, 1) + 1, mesh.F(f, 2) + 1);
     text += line;
   }
-  write_text_atomically(path, text);
+  write_file_atomically(path, text);
 }
 
 std::vector<std::string> write_obj_sequence(const std::string& folder, const MatrixX3i& F,
@@ -375,7 +354,7 @@ void write_joints_json(const std::string& path, const Skeleton& skeleton) {
     joints.push_back(joint);
   }
   doc["joints"] = joints;
-  write_text_atomically(path, doc.dump(2) + "\n");
+  write_file_atomically(path, doc.dump(2) + "\n");
 }
 
 ObjCharacter read_obj_character(const std::string& obj_path) {

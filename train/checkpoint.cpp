@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 
 namespace amt {
@@ -180,7 +181,8 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
     archive.write("optimizer", optimizer_archive);
   }
 
-  const std::string temporary = path + ".tmp";
+  create_parent_folder(path);
+  const std::string temporary = temporary_path(path);
   try {
     archive.save_to(temporary);
   } catch (const std::exception& e) {
@@ -188,12 +190,7 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
     std::filesystem::remove(temporary, ignored);
     fail(temporary, ": cannot write the checkpoint (", first_line(e), ")");
   }
-  std::error_code error;
-  std::filesystem::rename(temporary, path, error);
-  if (error) {
-    std::filesystem::remove(temporary, error);
-    fail(path, ": cannot replace the checkpoint with ", temporary, " (", error.message(), ")");
-  }
+  replace_with_temporary(temporary, path);
 }
 
 CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<ModuleKind> expected_kind) {

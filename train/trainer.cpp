@@ -19,6 +19,7 @@
 #include <sstream>
 #include <type_traits>
 
+#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 #include "data_tools/lbs_torch.h"
 #include "train/module_options.h"
@@ -219,16 +220,9 @@ void prepare_log(const std::string& path, const std::string& header, int64_t las
     }
   }
   in.close();
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": cannot write the training log");
-    for (const auto& row : kept) out << row << "\n";
-    AMT_CHECK(out.good(), temporary, ": cannot write the training log");
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, path, error);
-  AMT_CHECK(!error, path, ": cannot replace the training log (", error.message(), ")");
+  std::string text;
+  for (const auto& row : kept) text += row + "\n";
+  write_file_atomically(path, text);
 }
 
 std::string duration_text(double seconds) {

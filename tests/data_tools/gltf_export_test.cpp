@@ -304,9 +304,14 @@ TEST(GltfExport, BadInputWritesNothing) {
   EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
 
   // A folder that does not exist: the error names the temporary file.
-  const std::string nowhere = (dir / "missing" / "out.glb").string();
-  EXPECT_EQ(error_of([&] { export_gltf_mesh_sequence(nowhere, sphere.F, {sphere.V}, 30.0f); }),
-            nowhere + ".tmp: file: expected a writable file, found none (missing folder or permissions?)");
+  // A missing folder is created; a folder that cannot be (a file is in the way) is an error.
+  std::ofstream(dir / "blocker") << "not a folder";
+  const std::string nowhere = (dir / "blocker" / "out.glb").string();
+  const std::string message = error_of([&] { export_gltf_mesh_sequence(nowhere, sphere.F, {sphere.V}, 30.0f); });
+  EXPECT_EQ(message.rfind(nowhere + ": folder: expected to create", 0), 0u) << message;
+  const std::string created = (dir / "missing" / "out.glb").string();
+  export_gltf_mesh_sequence(created, sphere.F, {sphere.V}, 30.0f);
+  EXPECT_TRUE(std::filesystem::exists(created));
 }
 
 TEST(GltfExport, ReplacesAnExistingFile) {
