@@ -2,6 +2,7 @@
 // (tools/gltf-validator/validate.mjs, installed by scripts/setup.sh) and read back by the importer
 // (vertex positions of every frame, skeleton, weights, joint positions by forward kinematics), the
 // Fox re-exported, and bad input (no file written, no temporary left).
+#include "tests/test_support.h"
 #include "data_tools/gltf_export.h"
 
 #include <gtest/gtest.h>
@@ -24,32 +25,8 @@
 namespace amt {
 namespace {
 
-// A fresh folder under the system's temporary folder, unique to this process, removed at exit.
-std::filesystem::path temp_dir(const std::string& name) {
-  struct Root {
-    std::filesystem::path path =
-        std::filesystem::temp_directory_path() / ("amt_gltf_export_test_" + std::to_string(::getpid()));
-    ~Root() {
-      std::error_code ignored;
-      std::filesystem::remove_all(path, ignored);
-    }
-  };
-  static const Root root;
-  const auto dir = root.path / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::error_of;
+using test::temp_dir;
 
 std::string read_text(const std::filesystem::path& path) {
   std::ifstream in(path);

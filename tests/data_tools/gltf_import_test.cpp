@@ -3,6 +3,7 @@
 // small assets written in the test (every JOINTS / WEIGHTS component type, joint reordering, several
 // root joints, sparse accessors, external buffers, STEP / LINEAR / CUBICSPLINE interpolation, the
 // rest-frame rotation conversion, animated scale), and bad input (one-line errors naming the field).
+#include "tests/test_support.h"
 #include "data_tools/gltf_import.h"
 
 #include <gtest/gtest.h>
@@ -23,6 +24,9 @@
 namespace amt {
 namespace {
 
+using test::error_of;
+using test::temp_dir;
+
 const std::string kFox = std::string(AMT_SHARED_DATA_DIR) + "/characters/Fox.glb";
 
 std::vector<uint8_t> read_bytes(const std::string& path) {
@@ -38,34 +42,6 @@ void write_bytes(const std::string& path, const std::vector<uint8_t>& bytes) {
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
-}
-
-// A fresh folder under the system's temporary folder, unique to this process, removed at exit.
-std::filesystem::path temp_dir(const std::string& name) {
-  struct Root {
-    std::filesystem::path path =
-        std::filesystem::temp_directory_path() / ("amt_gltf_import_test_" + std::to_string(::getpid()));
-    ~Root() {
-      std::error_code ignored;
-      std::filesystem::remove_all(path, ignored);
-    }
-  };
-  static const Root root;
-  const auto dir = root.path / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
-// The message of the amt::Error thrown by f ("" if none).
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 // === A minimal GLB reader and node-graph evaluator, independent of the importer

@@ -1,6 +1,7 @@
 // OBJ import and export: bit-exact round trips (a sphere, extreme float values, the Fox's rest mesh),
 // polygons, groups, relative indices and texture/normal indices in a hand-written file, the joint
 // sidecar (round trip, hand-written order, bad files), OBJ sequences, and bad input.
+#include "tests/test_support.h"
 #include "data_tools/obj_io.h"
 
 #include <gtest/gtest.h>
@@ -22,40 +23,16 @@
 namespace amt {
 namespace {
 
+using test::error_of;
+using test::temp_dir;
+
 std::string asset(const std::string& name) {
   return std::string(AMT_TEST_ASSETS_DIR) + "/obj/" + name;
-}
-
-// A fresh folder under the system's temporary folder, unique to this process, removed at exit.
-std::filesystem::path temp_dir(const std::string& name) {
-  struct Root {
-    std::filesystem::path path =
-        std::filesystem::temp_directory_path() / ("amt_obj_io_test_" + std::to_string(::getpid()));
-    ~Root() {
-      std::error_code ignored;
-      std::filesystem::remove_all(path, ignored);
-    }
-  };
-  static const Root root;
-  const auto dir = root.path / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
 }
 
 void write_text(const std::filesystem::path& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
-}
-
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 // True when every coordinate has the same bits.
