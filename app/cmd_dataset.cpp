@@ -6,6 +6,7 @@
 
 #include "app/commands.h"
 #include "data_tools/dataset_info.h"
+#include "data_tools/dataset_preview.h"
 #include "data_tools/error.h"
 #include "data_tools/example_dataset.h"
 
@@ -45,6 +46,26 @@ void add_example_command(CLI::App& dataset) {
   });
 }
 
+// `amt dataset preview FILE --out X.glb`: a clip as an animated glTF.
+void add_preview_command(CLI::App& dataset) {
+  auto* preview = dataset.add_subcommand("preview", "Export one clip's ground truth as an animated glTF (.glb/.gltf)");
+  auto path = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto options = std::make_shared<DatasetPreviewOptions>();
+  preview->add_option("FILE", *path, "Dataset file (HDF5, format amt-dataset)")->required();
+  preview->add_option("--out", *out, "Output .glb or .gltf (written to a temporary name, then renamed)")->required();
+  preview->add_option("--clip", options->clip, "Clip name (default: the first clip)");
+  preview->add_option("--first-frame", options->first_frame, "First frame")->capture_default_str();
+  preview->add_option("--frames", options->max_frames, "At most this many frames (0: all)")->capture_default_str();
+  add_threads_option(*preview);
+  preview->callback([path, out, options] {
+    std::error_code error;
+    AMT_CHECK(std::filesystem::exists(*path, error), *path, ": no such file (expected a dataset file written by amt)");
+    const int frames = export_dataset_preview(*path, *out, *options);
+    std::cout << "wrote " << *out << " (" << frames << " frames)\n";
+  });
+}
+
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
@@ -52,6 +73,7 @@ void add_dataset_command(CLI::App& app) {
   dataset->require_subcommand(1);
   add_info_command(*dataset);
   add_example_command(*dataset);
+  add_preview_command(*dataset);
 }
 
 }  // namespace amt::app

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job on bundled defaults. Until the runtime (`amt animate`) lands this runs the most
 # complete job that exists: it writes an example dataset (capsule stand-in character, procedural
-# walk, rigid skinning) to out/demo.h5, summarises it and runs the core benchmark.
+# walk, rigid skinning) to out/demo.h5, summarises it, exports its clip as an animated glTF to
+# out/demo.glb (opens in three.js or Blender) and runs the core benchmark.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,5 +17,6 @@ echo "demo: the runtime (amt animate) is not built yet; running the most complet
 echo "demo: an example dataset from the core pieces -> out/demo.h5"
 "$amt" dataset example --out out/demo.h5
 "$amt" dataset info out/demo.h5
+"$amt" dataset preview out/demo.h5 --out out/demo.glb
 "$amt" bench --repeats 10
-echo "demo: wrote out/demo.h5"
+echo "demo: wrote out/demo.h5 and out/demo.glb"
