@@ -1,6 +1,5 @@
 #include "data_tools/example_dataset.h"
 
-#include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
@@ -8,20 +7,25 @@
 
 namespace amt {
 
-void write_example_dataset(const std::string& path, const ExampleDatasetOptions& options) {
-  AMT_CHECK(options.vertices >= 100 && options.frames >= 1, "dataset example: expected --vertices >= 100 and --frames "
-            ">= 1, found ", options.vertices, " and ", options.frames);
-  const Skeleton skeleton = canonical_skeleton();
+CharacterData capsule_example_character(const Skeleton& skeleton, int vertices) {
   CharacterData character;
   character.name = "capsules";
   character.skeleton = skeleton;
   character.split = "train";
   std::vector<int32_t> joint_of_vertex;
-  character.mesh = capsule_character(skeleton.rest_joints, skeleton.parents, options.vertices, &joint_of_vertex);
+  character.mesh = capsule_character(skeleton.rest_joints, skeleton.parents, vertices, &joint_of_vertex);
   const int N = character.mesh.num_vertices();
   character.apparel_mask.assign(N, 0);
   character.body_weights = MatrixXfR::Zero(N, skeleton.num_joints());
   for (int i = 0; i < N; ++i) character.body_weights(i, joint_of_vertex[i]) = 1.0f;
+  return character;
+}
+
+void write_example_dataset(const std::string& path, const ExampleDatasetOptions& options) {
+  AMT_CHECK(options.vertices >= 100 && options.frames >= 1, "dataset example: expected --vertices >= 100 and --frames "
+            ">= 1, found ", options.vertices, " and ", options.frames);
+  const Skeleton skeleton = canonical_skeleton();
+  const CharacterData character = capsule_example_character(skeleton, options.vertices);
 
   const Motion walk = walk_motion(options.frames, options.fps);
   DatasetWriter writer(path, options.fps, skeleton.names);

@@ -5,7 +5,14 @@
 // with simulated apparel; it contains no apparel (every mask entry is 0).
 #include <string>
 
+#include "data_tools/dataset_file.h"
+
 namespace amt {
+
+/// The example character "capsules": capsule_character on `skeleton` with about `vertices`
+/// vertices, split "train", every vertex rigidly bound (weight 1) to the joint its part follows,
+/// no apparel (all mask entries 0).
+CharacterData capsule_example_character(const Skeleton& skeleton, int vertices);
 
 /// Options of the example dataset.
 struct ExampleDatasetOptions {

@@ -106,6 +106,17 @@ Options network_options(const CheckpointInfo* resumed, const std::string& path, 
   return fresh;
 }
 
+// The same for a network over the skeleton's joints: a fresh one gets the dataset's J, a resumed
+// one must have been trained on J joints.
+template <typename Options>
+Options joint_network_options(const CheckpointInfo* resumed, const std::string& path, Options fresh, int64_t J) {
+  fresh.num_joints = J;
+  const Options options = network_options(resumed, path, fresh);
+  AMT_CHECK(options.num_joints == J, path, ": options.num_joints: expected ", J, " (the dataset's), found ",
+            options.num_joints);
+  return options;
+}
+
 Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOptions& o, int64_t J,
                const std::vector<std::string>& joint_names) {
   Task task;
@@ -124,11 +135,7 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
       break;
     }
     case ModuleKind::kSkinning: {
-      SkinningPredictorOptions fresh = o.networks.skinning;
-      fresh.num_joints = J;
-      SkinningPredictor net(network_options(resumed, o.resume, fresh));
-      AMT_CHECK(net->options.num_joints == J, o.resume, ": options.num_joints: expected ", J,
-                " (the dataset's), found ", net->options.num_joints);
+      SkinningPredictor net(joint_network_options(resumed, o.resume, o.networks.skinning, J));
       task.module = net.ptr();
       task.options_json = options_to_json(net->options);
       task.terms = {"vertex", "edge", "smoothness"};
@@ -143,11 +150,7 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
       break;
     }
     case ModuleKind::kApparel: {
-      ApparelDisplacementOptions fresh = o.networks.apparel;
-      fresh.num_joints = J;
-      ApparelDisplacementNet net(network_options(resumed, o.resume, fresh));
-      AMT_CHECK(net->options.num_joints == J, o.resume, ": options.num_joints: expected ", J,
-                " (the dataset's), found ", net->options.num_joints);
+      ApparelDisplacementNet net(joint_network_options(resumed, o.resume, o.networks.apparel, J));
       task.module = net.ptr();
       task.options_json = options_to_json(net->options);
       task.terms = {"vertex", "edge"};

@@ -1538,13 +1538,16 @@ namespace {
 
 // Inputs the fuzzer (scripts/fuzz.sh pmx) found crashing once; each must import or fail cleanly.
 TEST(PmxFuzzRegressions, EmptySectionsConvertToTheAmtFrame) {
+  // A model with no vertices, faces, bones, bodies or joints: the conversion once offset a null
+  // pointer here (caught by the sanitizers of scripts/fuzz.sh); it is a valid, empty model.
   const std::string path = std::string(AMT_TEST_ASSETS_DIR) + "/pmx/fuzz_empty_sections.pmx";
-  try {
-    const PmxModel model = pmx_to_amt_frame(read_pmx(path));
-    EXPECT_EQ(model.frame, PmxFrame::kAmt);
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("fuzz_empty_sections.pmx"), std::string::npos) << e.what();
-  }
+  const PmxModel model = pmx_to_amt_frame(read_pmx(path));
+  EXPECT_EQ(model.frame, PmxFrame::kAmt);
+  EXPECT_EQ(model.vertices.positions.rows(), 0);
+  EXPECT_EQ(model.faces.rows(), 0);
+  EXPECT_TRUE(model.bones.empty());
+  EXPECT_TRUE(model.rigid_bodies.empty());
+  EXPECT_TRUE(model.joints.empty());
 }
 
 }  // namespace

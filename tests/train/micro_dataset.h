@@ -2,11 +2,6 @@
 // A micro dataset for the training tests: a capsule character on the canonical skeleton (a few
 // hundred vertices) whose pelvis capsules are "apparel" that trails the body by two frames, and
 // procedural walks. Small enough that every module trains for dozens of steps in a second.
-#include <ATen/Parallel.h>
-#include <omp.h>
-
-#include <unistd.h>
-
 #include <algorithm>
 #include <filesystem>
 #include <memory>
@@ -14,9 +9,11 @@
 #include <vector>
 
 #include "data_tools/dataset_file.h"
+#include "data_tools/example_dataset.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
-#include "data_tools/shapes.h"
+#include "data_tools/threads.h"
+#include "tests/test_support.h"
 
 namespace amt::test {
 
@@ -34,18 +31,10 @@ struct MicroDatasetOptions {
 inline void write_micro_dataset(const std::string& path, const MicroDatasetOptions& options = {}) {
   Skeleton skeleton = canonical_skeleton();
   if (!options.joint_names.empty()) skeleton.names = options.joint_names;
-  CharacterData character;
-  character.name = "capsules";
-  character.skeleton = skeleton;
-  character.split = "train";
-  std::vector<int32_t> joint_of_vertex;
-  character.mesh = capsule_character(skeleton.rest_joints, skeleton.parents, options.vertices, &joint_of_vertex);
+  CharacterData character = capsule_example_character(skeleton, options.vertices);
   const int N = character.mesh.num_vertices();
-  character.apparel_mask.assign(N, 0);
-  character.body_weights = MatrixXfR::Zero(N, skeleton.num_joints());
-  for (int i = 0; i < N; ++i) {
-    character.body_weights(i, joint_of_vertex[i]) = 1.0f;
-    character.apparel_mask[i] = joint_of_vertex[i] == kPelvis ? 1 : 0;
+  for (int i = 0; i < N; ++i) {  // the pelvis capsules (bound to the pelvis) become apparel
+    character.apparel_mask[i] = character.body_weights(i, kPelvis) == 1.0f ? 1 : 0;
   }
   DatasetWriter writer(path, 30.0f, skeleton.names);
   writer.add_character(character);
@@ -75,29 +64,10 @@ inline void write_micro_dataset(const std::string& path, const MicroDatasetOptio
   writer.commit();
 }
 
-/// A fresh folder temp/<name>_<pid> for this test process (ctest may run tests in parallel), removed
-/// when the process exits.
-inline std::string test_directory(const std::string& name) {
-  struct Owned {
-    std::filesystem::path path;
-    ~Owned() {
-      std::error_code ignored;
-      std::filesystem::remove_all(path, ignored);
-    }
-  };
-  static std::vector<std::unique_ptr<Owned>> owned;
-  const auto path = std::filesystem::temp_directory_path() / (name + "_" + std::to_string(getpid()));
-  std::filesystem::remove_all(path);
-  std::filesystem::create_directories(path);
-  owned.push_back(std::make_unique<Owned>());
-  owned.back()->path = path;  // set after construction: a temporary Owned would remove the folder
-  return path.string();
-}
+/// A fresh folder for this test process, removed when the process exits (tests/test_support.h).
+inline std::string test_directory(const std::string& name) { return temp_dir(name).string(); }
 
 /// One thread for tiny tensors: extra threads only add synchronisation (and make timings noisy).
-inline void use_one_thread() {
-  at::set_num_threads(1);
-  omp_set_num_threads(1);
-}
+inline void use_one_thread() { set_thread_count(1); }
 
 }  // namespace amt::test
