@@ -9,7 +9,7 @@ packages=(
   libtorch-dev          # LibTorch 1.13, CPU
   libopenblas0-pthread  # LibTorch's BLAS: ~35x faster matrix products than the reference BLAS
   libeigen3-dev libtinygltf-dev libtinyobjloader-dev libhdf5-dev libcli11-dev
-  libgtest-dev libbullet-dev nlohmann-json3-dev
+  libgtest-dev libbullet-dev nlohmann-json3-dev libnanoflann-dev
   libopenvdb-dev libboost-dev libtbb-dev
   gnuplot-nox           # report plots (PNG)
 )
