@@ -12,6 +12,7 @@ packages=(
   libgtest-dev libbullet-dev nlohmann-json3-dev libnanoflann-dev
   libopenvdb-dev libboost-dev libtbb-dev
   gnuplot-nox           # report plots (PNG)
+  libstb-dev            # stb_image_write: PNG pictures of characters (data_tools/render.h)
 )
 
 # Node runs the Khronos glTF validator (npm package gltf-validator) in tests. The machine image may
