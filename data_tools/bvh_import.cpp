@@ -600,6 +600,21 @@ BvhMotion bvh_to_motion(const BvhFile& file, double metres_per_unit) {
 
 // === Import onto the canonical skeleton
 
+bool is_calibration_frame(const Motion& motion) {
+  const int T = motion.num_frames(), J = motion.num_joints();
+  if (T < 3 || J == 0) return false;
+  auto mean_angle_degrees = [&](int t) {
+    double sum = 0.0;
+    for (int j = 0; j < J; ++j) sum += Eigen::AngleAxisd(motion.rotation(t, j).cast<double>()).angle();
+    return sum / J * 180.0 / 3.14159265358979;
+  };
+  std::vector<double> take;
+  for (int t = 1; t < std::min(T, 31); ++t) take.push_back(mean_angle_degrees(t));
+  std::nth_element(take.begin(), take.begin() + take.size() / 2, take.end());
+  const double first = mean_angle_degrees(0), median = take[take.size() / 2];
+  return first < 10.0 && first < median / 3.0;
+}
+
 BvhImport bvh_to_canonical(const BvhFile& file, const BvhImportOptions& options) {
   check_file(file);
   BvhImport out;
@@ -624,6 +639,13 @@ BvhImport bvh_to_canonical(const BvhFile& file, const BvhImportOptions& options)
   const JointMapping mapping =
       map_to_canonical(full.skeleton.names, full.skeleton.parents, options.joint_map, file.source);
   out.canonical = to_canonical(full.skeleton, full.motion, mapping, file.source);
+  if (options.drop_calibration_frame && is_calibration_frame(out.canonical.motion)) {
+    Motion& motion = out.canonical.motion;
+    const int J = motion.num_joints(), T = motion.num_frames();
+    motion.local_rotations.erase(motion.local_rotations.begin(), motion.local_rotations.begin() + J);
+    motion.root_translation = MatrixX3f(motion.root_translation.bottomRows(T - 1));
+    out.dropped_calibration_frame = true;
+  }
   if (options.fps) out.canonical.motion = resample_motion(out.canonical.motion, *options.fps);
   return out;
 }

@@ -138,6 +138,10 @@ struct BvhImportOptions {
   std::optional<float> fps = 30.0f;
   /// The user's joint map (`--joint-map`), which overrides the built-in name tables.
   std::optional<JointMapFile> joint_map;
+  /// Drop a leading calibration frame (see is_calibration_frame): mocap exports such as the CMU BVH
+  /// conversions start with one frame in a T-pose before the take, which would otherwise snap the
+  /// character from a T-pose into the motion between frames 0 and 1.
+  bool drop_calibration_frame = true;
 };
 
 /// A BVH file on the canonical skeleton, with what the import decided.
@@ -152,10 +156,17 @@ struct BvhImport {
   double source_fps = 0.0;
   int source_frames = 0;
   double dropped_translation = 0.0;
+  /// Whether a leading calibration frame was dropped.
+  bool dropped_calibration_frame = false;
 };
 
+/// Whether frame 0 of `motion` is a calibration pose rather than part of the take: the mean rotation
+/// angle of its joints (relative to rest) is under 10 degrees and under a third of the median of the
+/// same mean over frames 1 to 30. Needs at least 3 frames.
+bool is_calibration_frame(const Motion& motion);
+
 /// Converts a parsed file: units, full-skeleton motion, joint mapping (map_to_canonical),
-/// composition onto the canonical joints (to_canonical), then resampling. Throws amt::Error naming
+/// composition onto the canonical joints (to_canonical), dropping a calibration frame, then resampling. Throws amt::Error naming
 /// the file when the joints cannot be mapped or an option is out of range.
 BvhImport bvh_to_canonical(const BvhFile& file, const BvhImportOptions& options = {});
 
