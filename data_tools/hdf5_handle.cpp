@@ -82,7 +82,10 @@ bool has_child(hid_t loc, const std::string& name) {
 }
 
 Group create_group(hid_t loc, const std::string& name, const std::string& where) {
-  Group group(H5Gcreate2(loc, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+  // No modification times in object headers: the same content gives the same bytes (reproducible shards).
+  const PropertyList creation(H5Pcreate(H5P_GROUP_CREATE));
+  if (!creation || H5Pset_obj_track_times(creation.get(), 0) < 0) fail_hdf5(where, "cannot create the group");
+  Group group(H5Gcreate2(loc, name.c_str(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
   if (!group) fail_hdf5(where, "cannot create the group");
   return group;
 }
@@ -362,6 +365,7 @@ void write_dataset(hid_t loc, const std::string& name, hid_t file_type, hid_t me
   const Dataspace space(H5Screate_simple(static_cast<int>(shape.size()), shape.data(), nullptr));
   PropertyList creation(H5Pcreate(H5P_DATASET_CREATE));
   if (!space || !creation) fail_hdf5(where, "cannot create the dataspace " + shape_text(shape));
+  H5Pset_obj_track_times(creation.get(), 0);  // reproducible bytes, see create_group
   const hsize_t elements = element_count(shape);
   if (compress && !shape.empty() && elements >= 4096) {
     Shape chunk = shape;
@@ -388,6 +392,7 @@ Dataset create_frame_dataset(hid_t loc, const std::string& name, hid_t file_type
   const Dataspace space(H5Screate_simple(static_cast<int>(shape.size()), shape.data(), max_shape.data()));
   const PropertyList creation(H5Pcreate(H5P_DATASET_CREATE));
   if (!space || !creation) fail_hdf5(where, "cannot create the dataspace " + shape_text(shape));
+  H5Pset_obj_track_times(creation.get(), 0);  // reproducible bytes, see create_group
   set_compression(creation.get(), chunk, where);
   Dataset dataset(H5Dcreate2(loc, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
   if (!dataset) fail_hdf5(where, "cannot create the dataset");
