@@ -4,9 +4,12 @@
 #include <memory>
 #include <string>
 
+#include "amt/version.h"
 #include "app/commands.h"
+#include "data_tools/dataset_builder.h"
 #include "data_tools/dataset_info.h"
 #include "data_tools/dataset_preview.h"
+#include "data_tools/dataset_quality.h"
 #include "data_tools/error.h"
 #include "data_tools/example_dataset.h"
 
@@ -66,6 +69,75 @@ void add_preview_command(CLI::App& dataset) {
   });
 }
 
+// `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/dataset_builder.h).
+void add_build_command(CLI::App& dataset) {
+  auto* build = dataset.add_subcommand(
+      "build", "Build a dataset: procedural dressed characters simulated under every motion clip, one HDF5 shard "
+               "per character (seeded, resumable, --shard i/n for several processes)");
+  auto options = std::make_shared<DatasetBuildOptions>();
+  options->motions = AMT_SHARED_DATA_DIR "/mocap/cmu";
+  auto shard = std::make_shared<std::string>("0/1");
+  build->add_option("--out", options->out, "Output folder (shards, manifest.json, character records)")->required();
+  build->add_option("--seed", options->seed, "Seed of characters, apparel, splits and procedural motions")
+      ->capture_default_str();
+  build->add_option("--characters", options->characters, "Number of characters")->capture_default_str();
+  build->add_option("--motions", options->motions, "Folder of BVH files (every *.bvh); \"\" for none")
+      ->capture_default_str();
+  build->add_option("--procedural", options->procedural, "Number of procedural motion clips")->capture_default_str();
+  build->add_option("--frames", options->frames, "Frames per clip (30 fps)")->capture_default_str();
+  build->add_option("--vertices", options->vertices, "Target vertex count of each body before dressing")
+      ->capture_default_str();
+  build->add_option("--apparel-damping", options->apparel.damping_scale,
+                    "Scale on the damping of apparel bodies (ApparelOptions::damping_scale)")
+      ->capture_default_str();
+  build->add_option("--apparel-stiffness", options->apparel.stiffness_scale,
+                    "Scale on the angular spring stiffness of apparel joints (ApparelOptions::stiffness_scale)")
+      ->capture_default_str();
+  build->add_option("--physics-step", options->physics_step, "Physics substep in seconds")->capture_default_str();
+  build->add_option("--solver-iterations", options->solver_iterations, "Constraint solver iterations per substep")
+      ->capture_default_str();
+  build->add_option("--shard", *shard, "Build characters c with c % n == i (i/n)")->capture_default_str();
+  add_threads_option(*build);
+  build->callback([options, shard] {
+    options->shard = parse_shard(*shard);
+    options->progress = &std::cerr;
+    const DatasetBuildReport report = build_dataset(*options);
+    print_build_report(report, std::cerr);
+    std::cout << "wrote " << options->out << "\n";
+  });
+}
+
+// `amt dataset check DIR`: the quality gates of a built dataset (data_tools/dataset_quality.h).
+void add_check_command(CLI::App& dataset) {
+  auto* check = dataset.add_subcommand(
+      "check", "Quality gates of a built dataset folder: apparel lag, explosions, jumps, penetration; variety "
+               "table and picture in a Markdown report");
+  check->alias("quality");
+  auto dir = std::make_shared<std::string>();
+  auto options = std::make_shared<QualityOptions>();
+  check->add_option("DIR", *dir, "Dataset folder written by amt dataset build")->required();
+  check->add_option("--report", options->report_dir, "Folder for report.md and characters.png (default DIR/quality)");
+  check->add_option("--penetration-stride", options->penetration_stride,
+                    "Measure penetration on every k-th frame of each clip")
+      ->capture_default_str();
+  add_threads_option(*check);
+  check->callback([dir, options] {
+    std::error_code error;
+    AMT_CHECK(std::filesystem::is_directory(*dir, error), *dir,
+              ": no such folder (expected a dataset folder written by amt dataset build)");
+    QualityOptions run = *options;
+    if (run.report_dir.empty()) run.report_dir = (std::filesystem::path(*dir) / "quality").string();
+    run.progress = &std::cerr;
+    const DatasetQuality quality = check_dataset(*dir, run);
+    write_quality_report(quality, run);
+    print_gates(quality, std::cout);
+    std::cout << "wrote " << run.report_dir << "/report.md\n";
+    const int failed = quality.failed_gates();
+    AMT_CHECK(failed == 0, *dir, ": ", failed, " quality gate", failed == 1 ? "" : "s", " failed (see ",
+              run.report_dir, "/report.md)");
+  });
+}
+
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
@@ -74,6 +146,8 @@ void add_dataset_command(CLI::App& app) {
   add_info_command(*dataset);
   add_example_command(*dataset);
   add_preview_command(*dataset);
+  add_build_command(*dataset);
+  add_check_command(*dataset);
 }
 
 }  // namespace amt::app

@@ -1,0 +1,251 @@
+// Tests of data_tools/dataset_builder.h on a tiny dataset: 2 characters of about 1000 vertices x 3 procedural clips
+// of 10 frames, settling 0.1 s, committing every 2 clips.
+#include "data_tools/dataset_builder.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "data_tools/dataset_file.h"
+#include "tests/test_support.h"
+
+namespace amt {
+namespace {
+
+using test::error_of;
+
+namespace fs = std::filesystem;
+
+DatasetBuildOptions tiny_options(const fs::path& out) {
+  DatasetBuildOptions o;
+  o.out = out.string();
+  o.seed = 11;
+  o.characters = 2;
+  o.procedural = 3;
+  o.frames = 10;
+  o.vertices = 1000;
+  o.settle_seconds = 0.1f;
+  o.blend_seconds = 0.2f;
+  o.clips_per_commit = 2;
+  o.apparel.max_pieces = 2;
+  return o;
+}
+
+std::string bytes_of(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Every file of a folder (name -> FNV-1a 64 of its bytes and its size), without subfolders: readable on failure.
+std::map<std::string, std::string> folder_bytes(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string bytes = bytes_of(entry.path());
+    uint64_t h = 0xcbf29ce484222325ULL;
+    for (const char c : bytes) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ULL;
+    files[entry.path().filename().string()] = std::to_string(bytes.size()) + " bytes, fnv " + std::to_string(h);
+  }
+  return files;
+}
+
+std::vector<std::string> names_of(const std::map<std::string, std::string>& files) {
+  std::vector<std::string> names;
+  for (const auto& [name, bytes] : files) names.push_back(name);
+  return names;
+}
+
+// One uninterrupted reference build, shared by the tests.
+class DatasetBuilder : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    reference_ = new fs::path(test::temp_dir("dataset_builder_reference"));
+    report_ = new DatasetBuildReport(build_dataset(tiny_options(*reference_)));
+  }
+  static void TearDownTestSuite() {
+    delete reference_;
+    delete report_;
+  }
+  static fs::path* reference_;
+  static DatasetBuildReport* report_;
+};
+fs::path* DatasetBuilder::reference_ = nullptr;
+DatasetBuildReport* DatasetBuilder::report_ = nullptr;
+
+TEST(DatasetBuilderOptions, ParsesShardsAndRejectsBadOnes) {
+  EXPECT_EQ(parse_shard("1/2").index, 1);
+  EXPECT_EQ(parse_shard("1/2").count, 2);
+  EXPECT_EQ(parse_shard("0/1").count, 1);
+  for (const char* bad : {"2/2", "-1/2", "1", "a/b", "1/0", "/2", "1/", "1/2/3", "99999999/100000000"}) {
+    const std::string message = error_of([&] { parse_shard(bad); });
+    EXPECT_NE(message.find("--shard: expected i/n"), std::string::npos) << bad << ": " << message;
+  }
+}
+
+TEST(DatasetBuilderOptions, HeldOutSetsAreSeededAndSized) {
+  const std::vector<bool> a = held_out_set(32, 8, 5), b = held_out_set(32, 8, 5), c = held_out_set(32, 8, 6);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, c);
+  EXPECT_EQ(std::count(a.begin(), a.end(), true), 4);
+  EXPECT_EQ(std::count(c.begin(), c.end(), true), 4);
+  const std::vector<bool> two = held_out_set(2, 8, 5), one = held_out_set(1, 8, 5);
+  EXPECT_EQ(std::count(two.begin(), two.end(), true), 1);
+  EXPECT_EQ(one, std::vector<bool>{false});
+}
+
+TEST_F(DatasetBuilder, WritesOneShardPerCharacterWithEveryClip) {
+  EXPECT_EQ(report_->characters_built, 2);
+  EXPECT_EQ(report_->clips_built, 6);
+  EXPECT_EQ(report_->frames, 60);
+  EXPECT_FALSE(report_->interrupted);
+  EXPECT_EQ(names_of(folder_bytes(*reference_)),
+            (std::vector<std::string>{"character-0000.h5", "character-0000.json", "character-0001.h5",
+                                      "character-0001.json", "manifest.json"}));
+  const DatasetReader reader((*reference_ / "character-0001.h5").string());
+  EXPECT_EQ(reader.character_names(), std::vector<std::string>{"character-0001"});
+  ASSERT_EQ(reader.clip_names().size(), 3u);
+  EXPECT_EQ(reader.clip_names()[0], "character-0001__proc-run-001");  // sorted by name
+  EXPECT_EQ(reader.clip_names()[2], "character-0001__proc-walk-000");
+  const ClipInfo info = reader.clip_info("character-0001__proc-run-001");
+  EXPECT_EQ(info.num_frames, 10);
+  EXPECT_EQ(info.ground_truth, GroundTruth::kRig);
+  EXPECT_EQ(info.motion, "proc-run-001");
+  // Frame 0 is the character's rest pose: identity rotations at the rest joints.
+  const CharacterData character = reader.read_character("character-0001");
+  const Transforms first = reader.read_joint_transforms("character-0001__proc-run-001", 0, 1);
+  for (int j = 0; j < kCanonicalJointCount; ++j) {
+    EXPECT_TRUE(first[j].leftCols<3>().isIdentity(1e-6f));
+    EXPECT_TRUE(first[j].col(3).transpose().isApprox(character.skeleton.rest_joints.row(j), 1e-6f));
+  }
+  EXPECT_TRUE(character.rig.has_value());
+}
+
+TEST_F(DatasetBuilder, SplitsNeverShareCharactersOrClips) {
+  std::set<std::string> train_characters, test_characters, train_motions, test_motions, held_characters;
+  for (const char* shard : {"character-0000.h5", "character-0001.h5"}) {
+    const DatasetReader reader((*reference_ / shard).string());
+    for (const std::string& name : reader.character_names()) {
+      if (reader.read_character(name).split == "test") held_characters.insert(name);
+    }
+    for (const std::string& clip : reader.clip_names()) {
+      const ClipInfo info = reader.clip_info(clip);
+      (info.split == "train" ? train_characters : test_characters).insert(info.character);
+      (info.split == "train" ? train_motions : test_motions).insert(info.motion);
+    }
+  }
+  // One held-out character (1 of 2) and one held-out clip (1 of 3, at least one).
+  ASSERT_EQ(held_characters.size(), 1u);
+  for (const std::string& c : held_characters) EXPECT_EQ(train_characters.count(c), 0u) << c;
+  std::set<std::string> held_motions;
+  for (const std::string& m : test_motions) {
+    if (!train_motions.count(m)) held_motions.insert(m);
+  }
+  EXPECT_EQ(held_motions.size(), 1u);
+  // Every motion of a train clip is trained on by every train character; a held-out motion by none.
+  EXPECT_EQ(train_motions.size(), 2u);
+  EXPECT_EQ(train_characters.size(), 1u);
+}
+
+TEST_F(DatasetBuilder, SameSeedGivesByteIdenticalShards) {
+  const fs::path again = test::temp_dir("dataset_builder_again");
+  // A second later, so that anything time-dependent (HDF5 object modification times) would show.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  build_dataset(tiny_options(again));
+  EXPECT_EQ(folder_bytes(again), folder_bytes(*reference_));
+}
+
+TEST_F(DatasetBuilder, TwoShardProcessesBuildTheSameDataset) {
+  const fs::path dir = test::temp_dir("dataset_builder_shards");
+  DatasetBuildOptions o = tiny_options(dir);
+  o.shard = parse_shard("1/2");
+  const DatasetBuildReport second = build_dataset(o);
+  EXPECT_EQ(second.characters_total, 1);
+  EXPECT_TRUE(fs::exists(dir / "character-0001.h5"));
+  EXPECT_FALSE(fs::exists(dir / "character-0000.h5"));
+  o.shard = parse_shard("0/2");
+  build_dataset(o);
+  EXPECT_EQ(folder_bytes(dir), folder_bytes(*reference_));
+}
+
+TEST_F(DatasetBuilder, InterruptedBuildResumesWithoutRedoingCommittedClips) {
+  const fs::path dir = test::temp_dir("dataset_builder_resume");
+  DatasetBuildOptions o = tiny_options(dir);
+  o.stop_after_clips = 3;  // clips 0, 1 committed; clip 2 simulated but lost, as with a kill
+  const DatasetBuildReport first = build_dataset(o);
+  EXPECT_TRUE(first.interrupted);
+  EXPECT_EQ(first.clips_built, 2);
+  // Only the committed part is there: no *.h5 file a trainer would read, no temporary.
+  EXPECT_EQ(names_of(folder_bytes(dir)), (std::vector<std::string>{"character-0000.part", "manifest.json"}));
+  EXPECT_EQ(DatasetReader((dir / "character-0000.part").string()).clip_names().size(), 2u);
+
+  o.stop_after_clips = -1;
+  const DatasetBuildReport second = build_dataset(o);
+  EXPECT_FALSE(second.interrupted);
+  EXPECT_EQ(second.clips_skipped, 2);
+  EXPECT_EQ(second.clips_built, 4);
+  EXPECT_EQ(second.frames, 40);
+  EXPECT_EQ(folder_bytes(dir), folder_bytes(*reference_));
+
+  // A third run finds everything done.
+  const DatasetBuildReport third = build_dataset(o);
+  EXPECT_EQ(third.characters_skipped, 2);
+  EXPECT_EQ(third.clips_built, 0);
+  EXPECT_EQ(third.frames, 0);
+}
+
+TEST_F(DatasetBuilder, RejectsAFolderBuiltWithOtherSettings) {
+  const fs::path dir = test::temp_dir("dataset_builder_other");
+  fs::copy(*reference_, dir);
+  const auto before = folder_bytes(dir);
+  DatasetBuildOptions o = tiny_options(dir);
+  o.seed = 12;
+  const std::string message = error_of([&] { build_dataset(o); });
+  EXPECT_NE(message.find("built with other settings (settings.seed: 12 here, 11 in the folder)"), std::string::npos)
+      << message;
+  o = tiny_options(dir);
+  o.frames = 11;
+  EXPECT_NE(error_of([&] { build_dataset(o); }).find("settings.frames"), std::string::npos);
+  EXPECT_EQ(folder_bytes(dir), before);
+}
+
+TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) {
+  const fs::path dir = test::temp_dir("dataset_builder_bad");
+  fs::copy(*reference_, dir);
+  const auto before = folder_bytes(dir);
+  const fs::path empty = test::temp_dir("dataset_builder_no_bvh");
+  const fs::path broken = test::temp_dir("dataset_builder_broken_bvh");
+  std::ofstream(broken / "broken.bvh") << "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n";
+  struct Case {
+    std::string what;
+    std::function<void(DatasetBuildOptions&)> change;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"empty motion folder", [&](DatasetBuildOptions& o) { o.motions = empty.string(); }, "has no .bvh file"},
+      {"unreadable BVH", [&](DatasetBuildOptions& o) { o.motions = broken.string(); }, "broken.bvh"},
+      {"zero vertices", [](DatasetBuildOptions& o) { o.vertices = 0; }, "--vertices: expected 1000 to"},
+      {"bad shard", [](DatasetBuildOptions& o) { o.shard = {3, 2}; }, "--shard"},
+      {"no characters", [](DatasetBuildOptions& o) { o.characters = 0; }, "--characters"},
+  };
+  for (const Case& c : cases) {
+    DatasetBuildOptions o = tiny_options(dir);
+    c.change(o);
+    const std::string message = error_of([&] { build_dataset(o); });
+    EXPECT_NE(message.find(c.expected), std::string::npos) << c.what << ": " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << c.what;
+    EXPECT_EQ(folder_bytes(dir), before) << c.what;
+  }
+}
+
+}  // namespace
+}  // namespace amt
