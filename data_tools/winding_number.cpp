@@ -87,9 +87,12 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
 WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, double beta) : beta_(beta) {
   validate_mesh(TriMesh{V, F}, "WindingNumberTree");
   AMT_CHECK(std::isfinite(beta) && beta > 0, "WindingNumberTree: beta: expected a positive number, found ", beta);
+  faces_ = F;
+  num_vertices_ = V.rows();
   triangles_.resize(static_cast<size_t>(F.rows()));
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    triangles_[f] = {V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose()};
+    triangles_[f] = {V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose(),
+                     static_cast<int32_t>(f)};
   }
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
@@ -121,12 +124,11 @@ double WindingNumberTree::FarField::solid_angle(const Eigen::Vector3d& r) const 
   return order0 + order1 + order2;
 }
 
-int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
-  assert(depth < kMaxStack - 1);
-  Node node;
-  node.first = first;
-  node.count = count;
+Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
+  const int32_t first = node.first, count = node.count;
   FarField& far = node.far_field;
+  node.box.setEmpty();
+  node.radius = 0;
   // First pass: bounds, area-weighted centroid and normal sum, and the bounds of the triangle
   // centroids, which choose the split.
   Eigen::AlignedBox3f centroid_box;
@@ -146,6 +148,7 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
     area += triangle_area;
   }
   far.center = area > 0 ? Eigen::Vector3d(weighted_centroids / area) : Eigen::Vector3d(plain_centroids / count);
+  node.area = area;
 
   // Second pass, about the centre: moments and radius. Over a triangle with centroid x_t, the mean of
   // (x - c)(x - c)^T is d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c.
@@ -164,6 +167,49 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
     far.first_moment += area_normal * d.transpose();
     for (int i = 0; i < 3; ++i) far.second_moment[i] += area_normal[i] * spread;
   }
+  return centroid_box;
+}
+
+// Parallel-axis shifts of the moments from a child's centre c_k to the parent's c, d = c_k - c:
+//   M   = sum_k M_k + N_k d^T                         (x_t - c = (x_t - c_k) + d)
+//   Q_i = sum_k Q_i,k + m_i d^T + d m_i^T + N_k[i] d d^T,   m_i = row i of M_k, as a column
+// (the mean of (x - c)(x - c)^T over a triangle expands the same way, its mean of x - c_k being x_t - c_k).
+void WindingNumberTree::merge_children(int32_t index) {
+  Node& node = nodes_[index];
+  const Node* children[2] = {&nodes_[node.left], &nodes_[node.right]};
+  node.box = children[0]->box.merged(children[1]->box);
+  node.area = children[0]->area + children[1]->area;
+  FarField& far = node.far_field;
+  if (node.area > 0) {
+    far.center = (children[0]->area * children[0]->far_field.center + children[1]->area * children[1]->far_field.center) /
+                 node.area;
+  } else {  // both children degenerate: their centres are plain centroid means
+    far.center = (children[0]->count * children[0]->far_field.center + children[1]->count * children[1]->far_field.center) /
+                 double(node.count);
+  }
+  far.normal_sum.setZero();
+  far.first_moment.setZero();
+  for (Eigen::Matrix3d& Q : far.second_moment) Q.setZero();
+  node.radius = 0;
+  for (const Node* child : children) {
+    const FarField& c = child->far_field;
+    const Eigen::Vector3d d = c.center - far.center;
+    far.normal_sum += c.normal_sum;
+    far.first_moment += c.first_moment + c.normal_sum * d.transpose();
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Vector3d m = c.first_moment.row(i).transpose();
+      far.second_moment[i] += c.second_moment[i] + m * d.transpose() + d * m.transpose() + c.normal_sum[i] * d * d.transpose();
+    }
+    node.radius = std::max(node.radius, child->radius + d.norm());
+  }
+}
+
+int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
+  assert(depth < kMaxStack - 1);
+  Node node;
+  node.first = first;
+  node.count = count;
+  const Eigen::AlignedBox3f centroid_box = fit(node);
 
   const auto index = static_cast<int32_t>(nodes_.size());
   nodes_.push_back(node);
@@ -255,6 +301,30 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   }
   if (closest) *closest = best_point.cast<float>();
   return static_cast<float>(std::sqrt(best2));
+}
+
+void WindingNumberTree::refit(const MatrixX3f& V) {
+  AMT_CHECK(V.rows() == num_vertices_, "WindingNumberTree::refit: V: expected ", num_vertices_,
+            " vertices (those the tree was built from), found ", V.rows());
+  AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
+  const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
+  // Leaves own disjoint triangle ranges: refresh their corners and fit them in parallel.
+#pragma omp parallel for schedule(dynamic, 32)
+  for (int32_t n = 0; n < num_nodes; ++n) {
+    Node& node = nodes_[n];
+    if (!node.is_leaf()) continue;
+    for (int32_t t = node.first; t < node.first + node.count; ++t) {
+      Triangle& tri = triangles_[t];
+      tri.a = V.row(faces_(tri.face, 0)).transpose();
+      tri.b = V.row(faces_(tri.face, 1)).transpose();
+      tri.c = V.row(faces_(tri.face, 2)).transpose();
+    }
+    fit(node);
+  }
+  // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
+  for (int32_t n = num_nodes - 1; n >= 0; --n) {
+    if (!nodes_[n].is_leaf()) merge_children(n);
+  }
 }
 
 Eigen::VectorXd WindingNumberTree::winding_numbers(const MatrixX3f& P) const {

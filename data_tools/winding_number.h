@@ -58,10 +58,22 @@ class WindingNumberTree {
   /// Number of triangles the tree was built from.
   int num_triangles() const { return static_cast<int>(triangles_.size()); }
 
+  /// Moves the surface to new positions of the same vertices (V #V by 3, metres, as many rows as at
+  /// construction; the faces stay those given then) and refits the tree to them in O(#F) without
+  /// re-sorting: leaves recompute their boxes and expansions from their triangles (in parallel with
+  /// OpenMP), inner nodes merge their children's (boxes by union, moments shifted to the new centre,
+  /// radius bounded by child radius plus centre offset, never smaller than the exact one). The far
+  /// field stays as accurate as after a fresh build; queries get slower only when the motion makes
+  /// the boxes overlap much more than at construction (a posed body of a skinned character does not).
+  /// This is what the runtime does per frame instead of building a tree over the posed body.
+  /// Throws amt::Error on a row count other than the construction's or on non-finite positions.
+  void refit(const MatrixX3f& V);
+
  private:
   // One triangle's corners, stored in tree order so that a leaf's triangles are contiguous.
   struct Triangle {
     Eigen::Vector3f a, b, c;
+    int32_t face;  // row of the construction's F
   };
 
   // What a subtree looks like from far away: the moments of its area-weighted normals about its
@@ -82,6 +94,8 @@ class WindingNumberTree {
     Eigen::AlignedBox3f box;        // bounds of the subtree's triangles
     FarField far_field;             // expansion used when the query point is far
     double radius = 0;              // largest distance from far_field.center to a triangle corner
+                                    // (an upper bound of it after refit)
+    double area = 0;                // total triangle area of the subtree
     int32_t left = -1, right = -1;  // children, -1 for a leaf
     int32_t first = 0, count = 0;   // leaf triangles triangles_[first, first + count)
     bool is_leaf() const { return left < 0; }
@@ -90,6 +104,15 @@ class WindingNumberTree {
   // Builds the subtree over triangles_[first, first + count) and returns its node index.
   int32_t build(int32_t first, int32_t count, int depth);
 
+  // Sets node's box, far field, radius and area from its triangles triangles_[first, first + count);
+  // returns the bounds of the triangle centroids (which choose the split).
+  Eigen::AlignedBox3f fit(Node& node) const;
+
+  // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
+  void merge_children(int32_t index);
+
+  MatrixX3i faces_;  // the construction's F, for refit
+  int64_t num_vertices_ = 0;
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
   double beta_;

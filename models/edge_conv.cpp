@@ -67,6 +67,11 @@ at::Tensor EdgeConvImpl::forward_factorized(const at::Tensor& h, const at::Tenso
   const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
   const at::Tensor a = at::linear(h, W1 - W2, edge->bias);  // (..., N, O): (W1 - W2) h_i + b
   const at::Tensor b = at::linear(h, W2);                   // (..., N, O): W2 h_j, gathered below
+  if (!at::GradMode::is_enabled()) {  // inference: in place on the fresh product, same values
+    at::Tensor out = a;
+    out.add_(gather_max(b, neighbors));
+    return at::leaky_relu_(out, options.negative_slope);  // eq. (13)
+  }
   return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
 }
 

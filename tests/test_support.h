@@ -1,8 +1,13 @@
 #pragma once
-// Helpers shared by the test suites: scratch folders and error capture.
+// Helpers shared by the test suites: scratch folders, error capture and the glTF validator.
+#include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
 #include <string>
 
 #include "data_tools/error.h"
@@ -35,6 +40,36 @@ std::string error_of(F&& f) {
     return e.what();
   }
   return "";
+}
+
+/// Runs the Khronos glTF validator (tools/gltf-validator/validate.mjs, installed by
+/// scripts/setup.sh) on a .gltf or .glb file: zero errors expected. The test fails, not skips, when
+/// Node or the validator is not installed. The repository is found from AMT_TEST_ASSETS_DIR.
+inline void expect_valid_gltf(const std::filesystem::path& file) {
+  const std::filesystem::path repo = std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path();
+  const std::filesystem::path tool = repo / "tools" / "gltf-validator";
+  if (std::system("node --version > /dev/null 2>&1") != 0) {
+    ADD_FAILURE() << "Node.js (node) is not installed, so the glTF validator cannot run: run scripts/setup.sh";
+    return;
+  }
+  if (!std::filesystem::exists(tool / "node_modules" / "gltf-validator" / "package.json")) {
+    ADD_FAILURE() << "the Khronos glTF validator is not installed in " << (tool / "node_modules").string()
+                  << ": run scripts/setup.sh (it runs `npm ci` in tools/gltf-validator)";
+    return;
+  }
+  const std::filesystem::path log = file.string() + ".validator.txt";
+  const std::string command =
+      "node '" + (tool / "validate.mjs").string() + "' '" + file.string() + "' > '" + log.string() + "' 2>&1";
+  const int status = std::system(command.c_str());
+  std::ifstream in(log);
+  std::ostringstream text;
+  text << in.rdbuf();
+  const std::string report = text.str();
+  std::cout << report;
+  EXPECT_EQ(status, 0) << report;
+  EXPECT_NE(report.find(": 0 errors"), std::string::npos) << report;
+  std::error_code ignored;
+  std::filesystem::remove(log, ignored);
 }
 
 }  // namespace amt::test

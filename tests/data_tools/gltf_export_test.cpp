@@ -26,6 +26,7 @@ namespace amt {
 namespace {
 
 using test::error_of;
+using test::expect_valid_gltf;
 using test::temp_dir;
 
 std::string read_text(const std::filesystem::path& path) {
@@ -33,30 +34,6 @@ std::string read_text(const std::filesystem::path& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
-}
-
-// Runs the Khronos glTF validator on a file: zero errors expected. The test fails, not skips, when
-// Node or the validator is not installed.
-void expect_valid_gltf(const std::filesystem::path& file) {
-  const std::filesystem::path repo = std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path();
-  const std::filesystem::path tool = repo / "tools" / "gltf-validator";
-  if (std::system("node --version > /dev/null 2>&1") != 0) {
-    ADD_FAILURE() << "Node.js (node) is not installed, so the glTF validator cannot run: run scripts/setup.sh";
-    return;
-  }
-  if (!std::filesystem::exists(tool / "node_modules" / "gltf-validator" / "package.json")) {
-    ADD_FAILURE() << "the Khronos glTF validator is not installed in " << (tool / "node_modules").string()
-                  << ": run scripts/setup.sh (it runs `npm ci` in tools/gltf-validator)";
-    return;
-  }
-  const std::filesystem::path log = file.string() + ".validator.txt";
-  const std::string command =
-      "node '" + (tool / "validate.mjs").string() + "' '" + file.string() + "' > '" + log.string() + "' 2>&1";
-  const int status = std::system(command.c_str());
-  const std::string report = read_text(log);
-  std::cout << report;
-  EXPECT_EQ(status, 0) << report;
-  EXPECT_NE(report.find(": 0 errors"), std::string::npos) << report;
 }
 
 // A deforming sphere: frame k is the rest sphere moved along +Z, with a travelling radial wave.

@@ -174,6 +174,56 @@ TEST(WindingNumberDistance, IcosphereAgreesWithTheSphere) {
   }
 }
 
+// A tree built on a sphere and refitted to a bent, stretched, moved copy answers as a tree built
+// fresh on that copy: winding numbers within the far field's tolerance of the fresh tree's and of the
+// exact sum, the same inside verdicts away from the surface, the same distances and closest points.
+TEST(WindingNumberRefit, MatchesAFreshBuildOnTheMovedSurface) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const float r = 0.8f;
+  const TriMesh sphere = icosphere(4, r, center);
+  MatrixX3f moved = sphere.V;
+  for (Eigen::Index i = 0; i < moved.rows(); ++i) {
+    const Eigen::Vector3f v = sphere.V.row(i).transpose() - center;
+    const float bend = 0.3f * v.y() * v.y();  // a bend in x growing with height
+    moved.row(i) = Eigen::RowVector3f(1.3f * v.x() + bend + 0.5f, 0.8f * v.y() - 0.1f, v.z() + 0.2f);
+  }
+  WindingNumberTree refitted(sphere.V, sphere.F);
+  refitted.refit(moved);
+  const WindingNumberTree fresh(moved, sphere.F);
+  ASSERT_EQ(refitted.num_triangles(), fresh.num_triangles());
+
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> offset(-1.6f * r, 1.6f * r);
+  const Eigen::Vector3f moved_center(0.5f, -0.1f, 0.2f);
+  int inside = 0, outside = 0;
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::Vector3f p = moved_center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng));
+    const double w = refitted.winding_number(p), exact = fresh.exact_winding_number(p);
+    EXPECT_NEAR(w, exact, 1e-2) << p.transpose();
+    EXPECT_NEAR(w, fresh.winding_number(p), 1e-2) << p.transpose();
+    EXPECT_NEAR(refitted.exact_winding_number(p), exact, 1e-9) << p.transpose();
+    if (std::abs(exact - 0.5) > 0.1) {
+      EXPECT_EQ(refitted.inside(p), fresh.inside(p)) << p.transpose();
+      ++(exact > 0.5 ? inside : outside);
+    }
+    Eigen::Vector3f closest_refitted, closest_fresh;
+    EXPECT_NEAR(refitted.distance(p, &closest_refitted), fresh.distance(p, &closest_fresh), 1e-6f) << p.transpose();
+    EXPECT_LT((closest_refitted - closest_fresh).norm(), 1e-5f) << p.transpose();
+  }
+  EXPECT_GT(inside, 30);
+  EXPECT_GT(outside, 30);
+
+  // Refitting back to the rest positions gives the rest tree's answers.
+  refitted.refit(sphere.V);
+  const WindingNumberTree rest(sphere.V, sphere.F);
+  for (int k = 0; k < 50; ++k) {
+    const Eigen::Vector3f p = center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng));
+    EXPECT_NEAR(refitted.winding_number(p), rest.winding_number(p), 1e-2) << p.transpose();
+    EXPECT_NEAR(refitted.distance(p), rest.distance(p), 1e-6f);
+  }
+  EXPECT_THROW(refitted.refit(sphere.V.topRows(10)), Error);
+}
+
 TEST(WindingNumber, RejectsBadInput) {
   const TriMesh cube = unit_cube();
   EXPECT_THROW(WindingNumberTree(MatrixX3f(0, 3), MatrixX3i(0, 3)), Error);
