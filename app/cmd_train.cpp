@@ -1,5 +1,6 @@
-// `amt train segmenter|skinning|apparel|refiner|all`: trains the modules on dataset shards
-// (train/trainer.h), writing <out>/<module>.ckpt and <out>/<module>.csv.
+// `amt train segmenter|skinning|apparel|refiner|apparel_refiner|all`: trains the modules on dataset
+// shards (train/trainer.h), writing <out>/<module>.ckpt and <out>/<module>.csv, and prints the step
+// time and throughput of each run.
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -8,6 +9,7 @@
 
 #include "app/commands.h"
 #include "data_tools/error.h"
+#include "train/module_options.h"
 #include "train/trainer.h"
 
 namespace amt::app {
@@ -16,37 +18,54 @@ namespace {
 struct TrainCommand {
   std::string module;
   std::vector<std::string> data;
+  std::string variant;
+  // Network options of a fresh run as JSON objects (train/module_options.h); empty: the defaults.
+  std::string segmenter_json, skinning_json, apparel_json, refiner_json;
   TrainOptions options;
   bool quiet = false;
 };
 
-void report(ModuleKind kind, const TrainResult& result) {
-  std::cout << module_kind_name(kind) << ": steps " << result.first_step << " -> " << result.last_step << ", "
-            << result.seconds_per_step << " s/step, " << result.samples_per_second << " samples/s; wrote "
-            << result.checkpoint << " and " << result.log << "\n";
+// One line per run: the figures of the training speed benchmark (DESIGN.md section 7) and the files.
+void report(const TrainResult& result) {
+  std::cout << std::filesystem::path(result.log).stem().string() << ": steps " << result.first_step << " -> "
+            << result.last_step << ", " << 1e3 * result.seconds_per_step << " ms/step, " << result.samples_per_second
+            << " samples/s, wall " << result.wall_seconds << " s";
+  if (!result.validation_losses.empty()) std::cout << ", val_loss " << result.validation_losses.back();
+  std::cout << "; wrote";
+  for (const std::string& checkpoint : result.checkpoints) std::cout << " " << checkpoint;
+  std::cout << " and " << result.log << std::endl;
 }
 
 void run(const TrainCommand& command) {
   TrainOptions options = command.options;
   options.progress = !command.quiet;
+  NetworkOptions& networks = options.networks;
+  if (!command.segmenter_json.empty())
+    options_from_json(command.segmenter_json, "--segmenter-options", networks.segmenter);
+  if (!command.skinning_json.empty()) options_from_json(command.skinning_json, "--skinning-options", networks.skinning);
+  if (!command.apparel_json.empty()) options_from_json(command.apparel_json, "--apparel-options", networks.apparel);
+  if (!command.refiner_json.empty()) options_from_json(command.refiner_json, "--refiner-options", networks.refiner);
+  if (!command.variant.empty()) {
+    AMT_CHECK(command.module == "skinning", "--variant: only the skinning predictor has variants, not '",
+              command.module, "'");
+    options.networks.skinning.variant = parse_skinning_variant(command.variant, "--variant");
+  }
+  if (command.module == "apparel_refiner") {
+    report(train_apparel_refiner(command.data, options));
+    return;
+  }
   if (command.module != "all") {
-    const ModuleKind kind = parse_module_kind(command.module, "amt train: MODULE");
-    report(kind, train_module(kind, command.data, options));
+    report(train_module(parse_module_kind(command.module, "amt train: MODULE"), command.data, options));
     return;
   }
   AMT_CHECK(options.resume.empty(), "--resume: resumes one module (amt train <module> --resume CKPT), not 'all'");
   const auto out = std::filesystem::path(options.out_dir);
-  for (ModuleKind kind : {ModuleKind::kSegmenter, ModuleKind::kSkinning, ModuleKind::kApparel, ModuleKind::kRefiner}) {
-    TrainOptions module_options = options;
-    if (kind == ModuleKind::kRefiner) {
-      if (module_options.apparel_checkpoint.empty())
-        module_options.apparel_checkpoint = (out / "apparel.ckpt").string();
-      if (module_options.skinning_checkpoint.empty()) {
-        module_options.skinning_checkpoint = (out / "skinning.ckpt").string();
-      }
-    }
-    report(kind, train_module(kind, command.data, module_options));
+  for (ModuleKind kind : {ModuleKind::kSegmenter, ModuleKind::kSkinning}) {
+    report(train_module(kind, command.data, options));
   }
+  TrainOptions end_to_end = options;
+  if (end_to_end.skinning_checkpoint.empty()) end_to_end.skinning_checkpoint = (out / "skinning.ckpt").string();
+  report(train_apparel_refiner(command.data, end_to_end));
 }
 
 }  // namespace
@@ -55,9 +74,12 @@ void add_train_command(CLI::App& app) {
   auto* train = app.add_subcommand("train", "Train the networks on dataset shards: checkpoints, CSV log, --resume");
   auto command = std::make_shared<TrainCommand>();
   TrainOptions& o = command->options;
-  train->add_option("MODULE", command->module, "segmenter, skinning, apparel, refiner, or all (in that order)")
+  train
+      ->add_option("MODULE", command->module,
+                   "segmenter, skinning, apparel, refiner, apparel_refiner (the two end to end), or all "
+                   "(segmenter, skinning, apparel_refiner)")
       ->required()
-      ->check(CLI::IsMember({"segmenter", "skinning", "apparel", "refiner", "all"}));
+      ->check(CLI::IsMember({"segmenter", "skinning", "apparel", "refiner", "apparel_refiner", "all"}));
   train->add_option("--data", command->data, "Dataset shards: *.h5 files or folders of them")->required();
   train->add_option("--out", o.out_dir, "Output folder for <module>.ckpt and <module>.csv")->required();
   train->add_option("--steps", o.steps, "Step to stop at (a resumed run continues up to it)")->capture_default_str();
@@ -67,14 +89,36 @@ void add_train_command(CLI::App& app) {
   train->add_option("--batch", o.batch, "Samples per step")->capture_default_str();
   train->add_option("--window", o.window, "Frames per apparel / refiner window (3 history + targets)")
       ->capture_default_str();
+  train
+      ->add_option("--variant", command->variant,
+                   "skinning: geodesic (default), no_geodesic or sorted (Table 4); writes skinning.ckpt, "
+                   "skinning_no_geodesic.ckpt or skinning_sorted.ckpt")
+      ->check(CLI::IsMember({"geodesic", "no_geodesic", "sorted"}));
+  train->add_option("--segmenter-options", command->segmenter_json,
+                    "Segmenter network options of a fresh run, a JSON object, e.g. '{\"encoder_widths\":[32,64,128]}'");
+  train->add_option("--skinning-options", command->skinning_json, "Skinning predictor options (JSON object)");
+  train->add_option("--apparel-options", command->apparel_json, "Apparel network options (JSON object)");
+  train->add_option("--refiner-options", command->refiner_json, "Refiner network options (JSON object)");
+  train->add_option("--skinning-frames", o.skinning_frames, "Frames per skinning sample")->capture_default_str();
+  train
+      ->add_option("--validate-every", o.validate_every,
+                   "Validation loss on held-out windows every K steps and at the end (0: never)")
+      ->capture_default_str();
+  train->add_option("--validation-samples", o.validation_samples, "Windows in the fixed validation set")
+      ->capture_default_str();
+  train->add_option("--validation-split", o.validation_split, "Split the validation windows come from")
+      ->capture_default_str();
   train->add_option("--checkpoint-every", o.checkpoint_every, "Write the checkpoint every K steps (0: at the end)")
       ->capture_default_str();
   train->add_option("--resume", o.resume,
-                    "Continue from this checkpoint (seed, lr, batch and window come from it; --steps is the total)");
-  train->add_option("--apparel", o.apparel_checkpoint, "refiner: the trained apparel module (all: <out>/apparel.ckpt)");
+                    "Continue from this checkpoint (seed, lr, batch and window come from it; --steps is the total; "
+                    "apparel_refiner: the refiner.ckpt)");
+  train->add_option("--apparel", o.apparel_checkpoint,
+                    "refiner: the trained apparel module; apparel_refiner --resume: the apparel checkpoint "
+                    "(default: apparel.ckpt next to the resumed refiner.ckpt)");
   train->add_option("--skinning", o.skinning_checkpoint,
-                    "refiner: the trained skinning predictor (default: ground-truth body weights; all: "
-                    "<out>/skinning.ckpt)");
+                    "refiner, apparel_refiner: the trained skinning predictor for the body (default: ground-truth "
+                    "body weights; all: <out>/skinning.ckpt)");
   train->add_option("--loader-threads", o.loader_threads, "Threads reading samples ahead of training")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();

@@ -156,6 +156,31 @@ std::string options_to_json(const JointRefinerOptions& options) {
   return write_json(options);
 }
 
+const char* skinning_variant_name(SkinningVariant variant) {
+  return variant_name(variant);
+}
+
+SkinningVariant parse_skinning_variant(const std::string& name, const std::string& source) {
+  if (name == "geodesic" || name == variant_name(SkinningVariant::kGeodesicAttention))
+    return SkinningVariant::kGeodesicAttention;
+  if (name == "no_geodesic") return SkinningVariant::kNoGeodesic;
+  if (name == "sorted" || name == variant_name(SkinningVariant::kSortByGeodesic))
+    return SkinningVariant::kSortByGeodesic;
+  fail(source, ": expected geodesic, no_geodesic or sorted, found '", name, "'");
+}
+
+std::string skinning_file_stem(SkinningVariant variant) {
+  switch (variant) {
+    case SkinningVariant::kGeodesicAttention:
+      return "skinning";
+    case SkinningVariant::kNoGeodesic:
+      return "skinning_no_geodesic";
+    case SkinningVariant::kSortByGeodesic:
+      return "skinning_sorted";
+  }
+  return "skinning";
+}
+
 void options_from_json(const std::string& text, const std::string& source, ApparelSegmenterOptions& options) {
   read_json(text, source, options);
 }

@@ -28,4 +28,18 @@ void options_from_json(const std::string& text, const std::string& source, Skinn
 void options_from_json(const std::string& text, const std::string& source, ApparelDisplacementOptions& options);
 void options_from_json(const std::string& text, const std::string& source, JointRefinerOptions& options);
 
+// === Skinning variants (paper Table 4)
+
+/// The name a variant has in options JSON: "geodesic_attention", "no_geodesic" or "sort_by_geodesic".
+const char* skinning_variant_name(SkinningVariant variant);
+
+/// The variant named on the command line: "geodesic" (the paper's method), "no_geodesic" or "sorted"
+/// (the JSON names are accepted too). Throws amt::Error "<source>: expected geodesic, no_geodesic or
+/// sorted, found 'x'".
+SkinningVariant parse_skinning_variant(const std::string& name, const std::string& source);
+
+/// The file stem of a trained skinning predictor of that variant, so the three can sit side by side:
+/// "skinning", "skinning_no_geodesic", "skinning_sorted" (<stem>.ckpt, <stem>.csv).
+std::string skinning_file_stem(SkinningVariant variant);
+
 }  // namespace amt

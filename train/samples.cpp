@@ -30,6 +30,13 @@ at::Tensor float_tensor(const float* data, std::vector<int64_t> shape) {
   return at::from_blob(const_cast<float*>(data), shape, at::kFloat).clone();
 }
 
+// A tensor over `m`'s storage, which it takes over (no copy): float matrices read per sample.
+at::Tensor owning_tensor(MatrixX3f&& m, std::vector<int64_t> shape) {
+  auto* owned = new MatrixX3f(std::move(m));
+  return at::from_blob(
+      owned->data(), shape, [owned](void*) { delete owned; }, at::TensorOptions().dtype(at::kFloat));
+}
+
 at::Tensor edge_tensor(const MatrixX2i& E) {
   if (E.rows() == 0) return at::zeros({0, 2}, at::kLong);
   return at::from_blob(const_cast<int32_t*>(E.data()), {E.rows(), 2}, at::kInt).to(at::kLong);
@@ -271,8 +278,9 @@ TrainingSample SampleSource::get(int64_t k) {
       DatasetReader& reader = readers->at(clip.shard, shards_);
       const int F = options_.frames, J = static_cast<int>(joint_names_.size());
       sample.joint_transforms = transforms_tensor(reader.read_joint_transforms(clip.name, sample.first_frame, F), F, J);
-      const MatrixX3f vertices = reader.read_vertices(clip.name, sample.first_frame, F);
-      sample.vertices = float_tensor(vertices.data(), {F, vertices.rows() / F, 3});
+      MatrixX3f vertices = reader.read_vertices(clip.name, sample.first_frame, F);
+      const int64_t N = vertices.rows() / F;
+      sample.vertices = owning_tensor(std::move(vertices), {F, N, 3});
     }
   } catch (...) {
     give_back(std::move(readers));

@@ -33,8 +33,13 @@ using Clock = std::chrono::steady_clock;
 
 // === Run configuration stored in the checkpoint
 
-std::string config_to_json(const TrainOptions& o) {
+// The `mode` of a checkpoint's config: a module trained on its own, or the end-to-end pair.
+constexpr const char* kSingleMode = "single";
+constexpr const char* kEndToEndMode = "apparel_refiner";
+
+std::string config_to_json(const TrainOptions& o, const char* mode) {
   Json j;
+  j["mode"] = mode;
   j["seed"] = o.seed;
   j["learning_rate"] = o.learning_rate;
   j["weight_decay"] = o.weight_decay;
@@ -46,19 +51,32 @@ std::string config_to_json(const TrainOptions& o) {
                   {"edge", o.weights.edge},
                   {"smoothness", o.weights.smoothness},
                   {"regularizer", o.weights.regularizer}};
+  if (!o.skinning_checkpoint.empty()) j["skinning_checkpoint"] = o.skinning_checkpoint;
   return j.dump();
 }
 
-// Takes the (run) settings of TrainOptions from a checkpoint's config.
-void config_from_json(const std::string& text, const std::string& path, TrainOptions& o) {
+// Takes the (run) settings of TrainOptions from a checkpoint's config and checks its mode (a config
+// without one predates the end-to-end mode and is a single-module run).
+void config_from_json(const std::string& text, const std::string& path, const char* expected_mode, TrainOptions& o) {
   const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
   AMT_CHECK(j.is_object(), path, ": config: expected a JSON object, found '", text.substr(0, 80), "'");
+  const auto mode = j.find("mode");
+  const std::string found = mode == j.end() ? kSingleMode : mode->is_string() ? mode->get<std::string>() : mode->dump();
+  AMT_CHECK(found == expected_mode, path, ": config.mode: expected '", expected_mode, "', found '", found, "' (",
+            found == kEndToEndMode ? "an end-to-end run resumes with amt train apparel_refiner"
+                                   : "a single-module run resumes with amt train <module>",
+            ")");
   const auto get = [&](const Json& from, const char* key, auto& out, const std::string& where) {
     const auto it = from.find(key);
     AMT_CHECK(it != from.end() && it->is_number(), path, ": config.", where, key, ": expected a number, found ",
               it == from.end() ? std::string("nothing") : it->dump());
     out = it->get<std::decay_t<decltype(out)>>();
   };
+  // B̂ of a refiner run comes from the same skinning predictor unless another one is given.
+  if (const auto skinning = j.find("skinning_checkpoint");
+      skinning != j.end() && skinning->is_string() && o.skinning_checkpoint.empty()) {
+    o.skinning_checkpoint = skinning->get<std::string>();
+  }
   get(j, "seed", o.seed, "");
   get(j, "learning_rate", o.learning_rate, "");
   get(j, "weight_decay", o.weight_decay, "");
@@ -76,11 +94,23 @@ void config_from_json(const std::string& text, const std::string& path, TrainOpt
 
 // === Modules and their losses
 
-// A module being trained: its network, its options as JSON, and the loss of one sample as
-// {total, unweighted terms...} in the order of `terms`.
-struct Task {
+// One network being trained: what it is, the stem of its files, its options as JSON, its optimizer,
+// and the checkpoint it resumes from (empty: fresh).
+struct Part {
+  ModuleKind kind = ModuleKind::kSegmenter;
+  std::string stem;
   std::shared_ptr<torch::nn::Module> module;
   std::string options_json;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  std::string resume;
+  std::string checkpoint;
+};
+
+// What a run trains: its networks, the stem of its log, and the loss of one sample as
+// {total, unweighted terms...} in the order of `terms`.
+struct Task {
+  std::vector<Part> parts;
+  std::string log_stem;
   std::vector<std::string> terms;
   std::function<std::vector<at::Tensor>(const TrainingSample&)> loss;
 };
@@ -117,15 +147,71 @@ Options joint_network_options(const CheckpointInfo* resumed, const std::string& 
   return options;
 }
 
-Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOptions& o, int64_t J,
+template <typename Net>
+Part make_part(ModuleKind kind, std::string stem, const Net& net, std::string options_json) {
+  Part part;
+  part.kind = kind;
+  part.stem = std::move(stem);
+  part.module = net.ptr();
+  part.options_json = std::move(options_json);
+  return part;
+}
+
+// B̂ (T, N_b, 3): the body skinned by LBS (eq. 4) with predicted weights when `skinning` is set,
+// else with the ground-truth ones; no gradient.
+at::Tensor skinned_body(SkinningPredictor& skinning, const CharacterTensors& c, const at::Tensor& motion) {
+  torch::NoGradGuard frozen;
+  const at::Tensor V_b = c.V.index_select(0, c.body_ids);
+  const at::Tensor W =
+      !skinning.is_empty() ? skinning->forward(V_b, c.joints, c.G_body) : c.body_weights.index_select(0, c.body_ids);
+  return linear_blend_skinning(V_b, W, motion, c.joints);
+}
+
+// `resumed` holds the info of each part's resumed checkpoint in the order the parts are made
+// (empty for a fresh run).
+Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInfo>& resumed,
+               const std::vector<std::string>& resume_paths, const TrainOptions& o, int64_t J,
                const std::vector<std::string>& joint_names) {
   Task task;
   const LossWeights w = o.weights;
+  const auto info = [&](size_t i) { return resumed.empty() ? nullptr : &resumed[i]; };
+  const auto path = [&](size_t i) { return resume_paths.empty() ? std::string() : resume_paths[i]; };
+  SkinningPredictor skinning{nullptr};
+  if ((end_to_end || kind == ModuleKind::kRefiner) && !o.skinning_checkpoint.empty()) {
+    skinning = load_frozen<SkinningPredictor, SkinningPredictorOptions>(o.skinning_checkpoint, ModuleKind::kSkinning,
+                                                                        joint_names);
+  }
+  if (end_to_end) {
+    ApparelDisplacementNet apparel(joint_network_options(info(0), path(0), o.networks.apparel, J));
+    JointRefiner refiner(network_options(info(1), path(1), o.networks.refiner));
+    task.parts.push_back(make_part(ModuleKind::kApparel, "apparel", apparel, options_to_json(apparel->options)));
+    task.parts.push_back(make_part(ModuleKind::kRefiner, "refiner", refiner, options_to_json(refiner->options)));
+    task.log_stem = kEndToEndMode;
+    task.terms = {"apparel_vertex", "apparel_edge", "refiner_vertex", "refiner_edge", "refiner_regularizer"};
+    task.loss = [apparel, refiner, skinning, w](const TrainingSample& s) mutable {
+      const CharacterTensors& c = *s.character;
+      const int64_t T = s.vertices.size(0);
+      const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
+      at::Tensor A_hat = at::zeros({T - 3, 0, 3});
+      LossTerms la;
+      la.total = la.vertex = la.edge = at::zeros({});
+      if (c.apparel_ids.size(0) > 0) {
+        // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
+        const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (T, N_a, 3)
+        A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors);
+        la = apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
+      }
+      const at::Tensor tiled = tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
+      const RefinerOutput out = refiner->forward(tiled, c.V, c.apparel_mask.to(at::kFloat));
+      const LossTerms lj = refiner_loss(out.V_hat, s.vertices.narrow(0, 3, T - 3), c.V, c.edges, out.delta, w);
+      return std::vector<at::Tensor>{la.total + lj.total, la.vertex, la.edge, lj.vertex, lj.edge, lj.regularizer};
+    };
+    return task;
+  }
   switch (kind) {
     case ModuleKind::kSegmenter: {
-      ApparelSegmenter net(network_options(resumed, o.resume, o.networks.segmenter));
-      task.module = net.ptr();
-      task.options_json = options_to_json(net->options);
+      ApparelSegmenter net(network_options(info(0), path(0), o.networks.segmenter));
+      task.parts.push_back(make_part(kind, "segmenter", net, options_to_json(net->options)));
       task.terms = {"bce"};
       const double pos_weight = o.segmenter_pos_weight;
       task.loss = [net, pos_weight](const TrainingSample& s) mutable {
@@ -135,9 +221,9 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
       break;
     }
     case ModuleKind::kSkinning: {
-      SkinningPredictor net(joint_network_options(resumed, o.resume, o.networks.skinning, J));
-      task.module = net.ptr();
-      task.options_json = options_to_json(net->options);
+      SkinningPredictor net(joint_network_options(info(0), path(0), o.networks.skinning, J));
+      task.parts.push_back(
+          make_part(kind, skinning_file_stem(net->options.variant), net, options_to_json(net->options)));
       task.terms = {"vertex", "edge", "smoothness"};
       task.loss = [net, w](const TrainingSample& s) mutable {
         const CharacterTensors& c = *s.character;
@@ -150,9 +236,8 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
       break;
     }
     case ModuleKind::kApparel: {
-      ApparelDisplacementNet net(joint_network_options(resumed, o.resume, o.networks.apparel, J));
-      task.module = net.ptr();
-      task.options_json = options_to_json(net->options);
+      ApparelDisplacementNet net(joint_network_options(info(0), path(0), o.networks.apparel, J));
+      task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
       task.terms = {"vertex", "edge"};
       task.loss = [net, w](const TrainingSample& s) mutable {
         const CharacterTensors& c = *s.character;
@@ -172,33 +257,21 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
                 "its checkpoint (amt train apparel writes <out>/apparel.ckpt)");
       ApparelDisplacementNet apparel = load_frozen<ApparelDisplacementNet, ApparelDisplacementOptions>(
           o.apparel_checkpoint, ModuleKind::kApparel, joint_names);
-      SkinningPredictor skinning{nullptr};
-      if (!o.skinning_checkpoint.empty()) {
-        skinning = load_frozen<SkinningPredictor, SkinningPredictorOptions>(o.skinning_checkpoint,
-                                                                            ModuleKind::kSkinning, joint_names);
-      }
-      JointRefiner net(network_options(resumed, o.resume, o.networks.refiner));
-      task.module = net.ptr();
-      task.options_json = options_to_json(net->options);
+      JointRefiner net(network_options(info(0), path(0), o.networks.refiner));
+      task.parts.push_back(make_part(kind, "refiner", net, options_to_json(net->options)));
       task.terms = {"vertex", "edge", "regularizer"};
       task.loss = [net, apparel, skinning, w](const TrainingSample& s) mutable {
         const CharacterTensors& c = *s.character;
         const int64_t T = s.vertices.size(0);
         const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
-        at::Tensor tiled;
-        {
+        at::Tensor A_hat = at::zeros({T - 3, 0, 3});
+        if (c.apparel_ids.size(0) > 0) {
           torch::NoGradGuard frozen;
-          at::Tensor A_hat = at::zeros({T - 3, 0, 3});
-          if (c.apparel_ids.size(0) > 0) {
-            const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
-            A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors);
-          }
-          const at::Tensor V_b = c.V.index_select(0, c.body_ids);
-          const at::Tensor W = !skinning.is_empty() ? skinning->forward(V_b, c.joints, c.G_body)
-                                                    : c.body_weights.index_select(0, c.body_ids);
-          const at::Tensor B_hat = linear_blend_skinning(V_b, W, motion, c.joints);
-          tiled = tile_apparel_body(A_hat, B_hat, c.apparel_mask);  // eq. (16)
+          const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
+          A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors);
         }
+        const at::Tensor tiled =
+            tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
         const RefinerOutput out = net->forward(tiled, c.V, c.apparel_mask.to(at::kFloat));
         const LossTerms l = refiner_loss(out.V_hat, s.vertices.narrow(0, 3, T - 3), c.V, c.edges, out.delta, w);
         return std::vector<at::Tensor>{l.total, l.vertex, l.edge, l.regularizer};
@@ -206,6 +279,7 @@ Task make_task(ModuleKind kind, const CheckpointInfo* resumed, const TrainOption
       break;
     }
   }
+  task.log_stem = task.parts.front().stem;
   return task;
 }
 
@@ -240,15 +314,64 @@ std::string duration_text(double seconds) {
   return out.str();
 }
 
-}  // namespace
+// Mean total loss of `samples` under NoGradGuard, with the networks in eval mode (and back in
+// training mode afterwards).
+double validation_loss(Task& task, const std::vector<TrainingSample>& samples) {
+  torch::NoGradGuard no_grad;
+  for (Part& part : task.parts) part.module->eval();
+  double sum = 0.0;
+  for (const TrainingSample& sample : samples) sum += task.loss(sample)[0].item<double>();
+  for (Part& part : task.parts) part.module->train();
+  return sum / static_cast<double>(samples.size());
+}
 
-TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, const TrainOptions& options_in) {
+// The fixed validation set: samples 0 .. n - 1 of the validation split, read once. Empty (with a
+// note on stderr) when the data has no such split or validation is off.
+std::vector<TrainingSample> validation_set(const std::vector<std::string>& shards, SampleSourceOptions sampling,
+                                           const TrainOptions& o, const std::string& name) {
+  std::vector<TrainingSample> samples;
+  if (o.validate_every <= 0 || o.validation_samples <= 0) return samples;
+  sampling.split = o.validation_split;
+  sampling.seed = o.validation_seed;
+  std::unique_ptr<SampleSource> source;
+  try {
+    source = std::make_unique<SampleSource>(shards, sampling);
+  } catch (const Error& e) {
+    // Only "nothing to draw" reaches here: the shards themselves were opened by the training source.
+    if (o.progress) std::fprintf(stderr, "[%s] no validation: %s\n", name.c_str(), e.what());
+    return samples;
+  }
+  for (int k = 0; k < o.validation_samples; ++k) samples.push_back(source->get(k));
+  return samples;
+}
+
+TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std::string>& data,
+                         const TrainOptions& options_in) {
   TrainOptions o = options_in;
-  const std::string name = module_kind_name(kind);
-  CheckpointInfo resumed;
+  const char* mode = end_to_end ? kEndToEndMode : kSingleMode;
+  // The checkpoints resumed: the module's, or the apparel module's and the refiner's.
+  std::vector<std::string> resume_paths;
+  std::vector<ModuleKind> kinds = {kind};
+  if (end_to_end) kinds = {ModuleKind::kApparel, ModuleKind::kRefiner};
   if (!o.resume.empty()) {
-    resumed = read_checkpoint_info(o.resume, kind);
-    config_from_json(resumed.config_json, o.resume, o);
+    if (end_to_end) {
+      const std::string apparel = !o.apparel_checkpoint.empty()
+                                      ? o.apparel_checkpoint
+                                      : (std::filesystem::path(o.resume).parent_path() / "apparel.ckpt").string();
+      resume_paths = {apparel, o.resume};
+    } else {
+      resume_paths = {o.resume};
+    }
+  }
+  // Read from the last (the one given as --resume) so that its errors come first.
+  std::vector<CheckpointInfo> resumed(resume_paths.size());
+  for (size_t i = resume_paths.size(); i-- > 0;) {
+    resumed[i] = read_checkpoint_info(resume_paths[i], kinds[i]);
+    config_from_json(resumed[i].config_json, resume_paths[i], mode, o);
+  }
+  for (size_t i = 1; i < resumed.size(); ++i) {
+    AMT_CHECK(resumed[i].step == resumed[0].step, resume_paths[i], ": step: expected ", resumed[0].step,
+              " (the step of ", resume_paths[0], ", written by the same run), found ", resumed[i].step);
   }
   AMT_CHECK(o.batch >= 1, "--batch: expected >= 1, found ", o.batch);
   AMT_CHECK(o.window >= 4, "--window: expected >= 4 (3 history states and a target), found ", o.window);
@@ -257,62 +380,68 @@ TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, 
   AMT_CHECK(o.steps >= 1, "--steps: expected >= 1, found ", o.steps);
 
   SampleSourceOptions sampling;
-  sampling.kind = kind;
-  sampling.frames = kind == ModuleKind::kSkinning ? o.skinning_frames : o.window;
+  sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;
+  sampling.frames = kind == ModuleKind::kSkinning && !end_to_end ? o.skinning_frames : o.window;
   sampling.seed = o.seed;
-  sampling.geodesics = kind == ModuleKind::kRefiner && !o.skinning_checkpoint.empty();
-  SampleSource source(resolve_shards(data), sampling);
+  sampling.geodesics = sampling.kind == ModuleKind::kRefiner && !o.skinning_checkpoint.empty();
+  const std::vector<std::string> shards = resolve_shards(data);
+  SampleSource source(shards, sampling);
   const std::vector<std::string>& joint_names = source.joint_names();
 
   int64_t first_step = 0;
-  if (!o.resume.empty()) {
-    check_checkpoint_skeleton(o.resume, resumed, joint_names);
-    AMT_CHECK(resumed.data_fingerprint == source.fingerprint(), o.resume, ": data_fingerprint: the checkpoint was ",
-              "trained on ", resumed.data_fingerprint, ", the given shards are ", source.fingerprint(),
-              " (resume with the same shard files)");
-    first_step = resumed.step;
-    AMT_CHECK(first_step < o.steps, o.resume, ": step: the checkpoint is at step ", first_step, ", --steps ", o.steps,
-              " asks for no more (give a larger --steps)");
+  for (size_t i = 0; i < resumed.size(); ++i) {
+    check_checkpoint_skeleton(resume_paths[i], resumed[i], joint_names);
+    AMT_CHECK(resumed[i].data_fingerprint == source.fingerprint(), resume_paths[i], ": data_fingerprint: the ",
+              "checkpoint was trained on ", resumed[i].data_fingerprint, ", the given shards are ",
+              source.fingerprint(), " (resume with the same shard files)");
+    first_step = resumed[i].step;
+    AMT_CHECK(first_step < o.steps, resume_paths[i], ": step: the checkpoint is at step ", first_step, ", --steps ",
+              o.steps, " asks for no more (give a larger --steps)");
   }
 
   torch::manual_seed(o.seed);
   Task task =
-      make_task(kind, o.resume.empty() ? nullptr : &resumed, o, static_cast<int64_t>(joint_names.size()), joint_names);
-  torch::nn::Module& model = *task.module;
-  torch::optim::AdamW optimizer(model.parameters(),
-                                torch::optim::AdamWOptions(o.learning_rate).weight_decay(o.weight_decay));
-  if (!o.resume.empty()) load_checkpoint(o.resume, kind, model, &optimizer);
-  model.train();
-
+      make_task(kind, end_to_end, resumed, resume_paths, o, static_cast<int64_t>(joint_names.size()), joint_names);
   std::error_code error;
   std::filesystem::create_directories(o.out_dir, error);
   AMT_CHECK(!error, o.out_dir, ": cannot create the output folder (", error.message(), ")");
   TrainResult result;
   result.first_step = first_step;
-  result.checkpoint = (std::filesystem::path(o.out_dir) / (name + ".ckpt")).string();
+  for (size_t i = 0; i < task.parts.size(); ++i) {
+    Part& part = task.parts[i];
+    part.optimizer = std::make_unique<torch::optim::AdamW>(
+        part.module->parameters(), torch::optim::AdamWOptions(o.learning_rate).weight_decay(o.weight_decay));
+    if (!resume_paths.empty()) load_checkpoint(resume_paths[i], part.kind, *part.module, part.optimizer.get());
+    part.module->train();
+    part.checkpoint = (std::filesystem::path(o.out_dir) / (part.stem + ".ckpt")).string();
+    result.checkpoints.push_back(part.checkpoint);
+  }
+  const std::string name = task.log_stem;
+  result.checkpoint = task.parts.back().checkpoint;
   result.log = (std::filesystem::path(o.out_dir) / (name + ".csv")).string();
   std::string header = "step,loss";
   for (const auto& term : task.terms) header += "," + term;
-  header += ",samples_per_s,seconds";
+  header += ",samples_per_s,seconds,val_loss";
   prepare_log(result.log, header, first_step);
   std::ofstream log(result.log, std::ios::app);
   AMT_CHECK(log.good(), result.log, ": cannot append to the training log");
   log << std::setprecision(9);
 
   CheckpointInfo info;
-  info.kind = kind;
-  info.options_json = task.options_json;
-  info.config_json = config_to_json(o);
+  info.config_json = config_to_json(o, mode);
   info.joint_names = joint_names;
   info.data_fingerprint = source.fingerprint();
 
+  const std::vector<TrainingSample> validation = validation_set(shards, sampling, o, name);
   const bool tty = isatty(fileno(stderr));
   SampleLoader loader(source, first_step * o.batch, (o.steps - first_step) * o.batch, o.loader_threads, o.prefetch);
   const auto run_start = Clock::now();
   auto last_print = run_start;
+  double step_seconds = 0.0;
+  double last_validation = std::nan("");
   for (int64_t step = first_step; step < o.steps; ++step) {
     const auto step_start = Clock::now();
-    optimizer.zero_grad();
+    for (Part& part : task.parts) part.optimizer->zero_grad();
     std::vector<double> values(task.terms.size() + 1, 0.0);
     for (int b = 0; b < o.batch; ++b) {
       const TrainingSample sample = loader.next();
@@ -322,38 +451,64 @@ TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, 
     }
     AMT_CHECK(std::isfinite(values[0]), name, ": step ", step + 1, ": the loss is not finite (", values[0],
               "); lower --lr or check the data");
-    optimizer.step();
-    const auto now = Clock::now();
-    const double seconds = std::chrono::duration<double>(now - step_start).count();
-    const double elapsed = std::chrono::duration<double>(now - run_start).count();
+    for (Part& part : task.parts) part.optimizer->step();
+    const auto step_end = Clock::now();
+    const double seconds = std::chrono::duration<double>(step_end - step_start).count();
+    step_seconds += seconds;
     result.losses.push_back(values[0]);
 
+    const bool last = step + 1 == o.steps;
+    const bool validate = !validation.empty() && (last || (step + 1) % o.validate_every == 0);
+    if (validate) {
+      last_validation = validation_loss(task, validation);
+      result.validation_steps.push_back(step + 1);
+      result.validation_losses.push_back(last_validation);
+    }
+    const auto now = Clock::now();
+    const double elapsed = std::chrono::duration<double>(now - run_start).count();
     log << step + 1;
     for (double v : values) log << "," << v;
-    log << "," << o.batch / seconds << "," << elapsed << "\n";
+    log << "," << o.batch / seconds << "," << elapsed << ",";
+    if (validate) log << last_validation;
+    log << "\n";
     log.flush();
 
     const int64_t done = step + 1 - first_step;
-    const bool last = step + 1 == o.steps;
     if (o.progress && (last || std::chrono::duration<double>(now - last_print).count() >= 1.0)) {
       last_print = now;
       const double per_step = elapsed / done;
-      std::fprintf(stderr, "%s[%s] step %lld/%lld  loss %.6g  %.1f samples/s  ETA %s%s", tty ? "\r" : "", name.c_str(),
-                   static_cast<long long>(step + 1), static_cast<long long>(o.steps), values[0],
-                   done * o.batch / elapsed, duration_text(per_step * (o.steps - step - 1)).c_str(),
+      std::string val;
+      if (!std::isnan(last_validation)) val = "  val " + std::to_string(last_validation);
+      std::fprintf(stderr, "%s[%s] step %lld/%lld  loss %.6g%s  %.1f samples/s  ETA %s%s", tty ? "\r" : "",
+                   name.c_str(), static_cast<long long>(step + 1), static_cast<long long>(o.steps), values[0],
+                   val.c_str(), done * o.batch / elapsed, duration_text(per_step * (o.steps - step - 1)).c_str(),
                    tty && !last ? "   " : "\n");
       std::fflush(stderr);
     }
     if (last || (o.checkpoint_every > 0 && (step + 1) % o.checkpoint_every == 0)) {
       info.step = step + 1;
-      save_checkpoint(result.checkpoint, info, model, &optimizer);
+      for (Part& part : task.parts) {
+        info.kind = part.kind;
+        info.options_json = part.options_json;
+        save_checkpoint(part.checkpoint, info, *part.module, part.optimizer.get());
+      }
     }
   }
-  const double total = std::chrono::duration<double>(Clock::now() - run_start).count();
+  result.wall_seconds = std::chrono::duration<double>(Clock::now() - run_start).count();
   result.last_step = o.steps;
-  result.seconds_per_step = total / static_cast<double>(o.steps - first_step);
-  result.samples_per_second = static_cast<double>((o.steps - first_step) * o.batch) / total;
+  result.seconds_per_step = step_seconds / static_cast<double>(o.steps - first_step);
+  result.samples_per_second = o.batch / result.seconds_per_step;
   return result;
+}
+
+}  // namespace
+
+TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, const TrainOptions& options) {
+  return run_training(kind, /*end_to_end=*/false, data, options);
+}
+
+TrainResult train_apparel_refiner(const std::vector<std::string>& data, const TrainOptions& options) {
+  return run_training(ModuleKind::kRefiner, /*end_to_end=*/true, data, options);
 }
 
 }  // namespace amt

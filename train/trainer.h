@@ -1,8 +1,10 @@
 #pragma once
 // Trainers of the four modules (DESIGN.md section 1, paper section 5.2): AdamW at 1e-4, one seeded
 // sample sequence per run (train/samples.h), a single versioned checkpoint file per module written
-// every K steps and at the end (train/checkpoint.h), a CSV log and a progress line on stderr.
-// A run resumed from a checkpoint continues bit for bit as the uninterrupted run would have.
+// every K steps and at the end (train/checkpoint.h), a CSV log, a validation loss on held-out
+// windows every K steps, and a progress line on stderr. The apparel module and the refiner also
+// train end to end (train_apparel_refiner), as the paper does. A run resumed from a checkpoint
+// continues bit for bit as the uninterrupted run would have.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -50,13 +52,27 @@ struct TrainOptions {
   double segmenter_pos_weight = 1.0;
   /// Write the checkpoint every this many steps (0: only at the end).
   int64_t checkpoint_every = 1000;
-  /// Folder of the outputs: <out_dir>/<kind>.ckpt and <out_dir>/<kind>.csv. Created if missing.
+  /// Validate every this many steps and at the last step (0: never): the mean loss, under
+  /// torch::NoGradGuard, of a fixed set of windows (characters for the segmenter) of the
+  /// `validation_split`, written to the CSV column val_loss. Data without that split runs without
+  /// validation (a note on stderr).
+  int64_t validate_every = 500;
+  /// Size of the validation set and the seed that picks it (fixed, so every run and every variant is
+  /// measured on the same windows), and the split it is drawn from.
+  int validation_samples = 16;
+  uint64_t validation_seed = 7;
+  std::string validation_split = "test";
+  /// Folder of the outputs: <out_dir>/<stem>.ckpt and <out_dir>/<stem>.csv, where the stem is the
+  /// module's name, or for the skinning variants skinning_file_stem() ("skinning_sorted"), or
+  /// "apparel_refiner" for the log of the end-to-end run. Created if missing.
   std::string out_dir = ".";
-  /// Checkpoint to resume from (empty: a fresh run).
+  /// Checkpoint to resume from (empty: a fresh run). End-to-end run: the refiner's checkpoint.
   std::string resume;
-  /// Refiner only: the trained apparel module (required), whose rollout gives Â.
+  /// Refiner only: the trained apparel module (required), whose rollout gives Â. End-to-end run: the
+  /// apparel checkpoint resumed along with `resume` (empty: apparel.ckpt next to it).
   std::string apparel_checkpoint;
-  /// Refiner only: the trained skinning predictor for B̂; empty uses the ground-truth body weights.
+  /// Refiner and end-to-end run: the trained skinning predictor for B̂; empty uses the ground-truth
+  /// body weights.
   std::string skinning_checkpoint;
   /// Loader threads reading samples ahead (0: read on the training thread) and how far ahead.
   int loader_threads = 2;
@@ -75,18 +91,39 @@ struct TrainResult {
   int64_t first_step = 0, last_step = 0;
   /// Total loss of every step run, in order (steps first_step .. last_step - 1).
   std::vector<double> losses;
-  /// The checkpoint and CSV log written.
+  /// The checkpoint and CSV log written (end-to-end run: the refiner's checkpoint).
   std::string checkpoint, log;
-  /// Mean wall time of an optimizer step (seconds) and samples per second over the run.
-  double seconds_per_step = 0.0, samples_per_second = 0.0;
+  /// Every checkpoint written (end-to-end run: apparel, then refiner).
+  std::vector<std::string> checkpoints;
+  /// Steps at which the run validated and the validation losses there (empty without validation).
+  std::vector<int64_t> validation_steps;
+  std::vector<double> validation_losses;
+  /// Mean time of an optimizer step including its wait for samples, without validation and
+  /// checkpoints (seconds); samples per second at that rate; wall time of the whole run (seconds).
+  double seconds_per_step = 0.0, samples_per_second = 0.0, wall_seconds = 0.0;
 };
 
 /// Trains the module `kind` on the shards (resolve_shards) from step 0, or from options.resume, up
-/// to options.steps. The CSV log <out_dir>/<kind>.csv has the columns step, loss, the module's
+/// to options.steps. The CSV log <out_dir>/<stem>.csv has the columns step, loss, the module's
 /// unweighted terms (segmenter: bce; skinning: vertex, edge, smoothness; apparel: vertex, edge;
-/// refiner: vertex, edge, regularizer), samples_per_s, seconds; a resumed run drops the rows past
-/// the checkpoint's step and appends. Throws amt::Error on bad input: a checkpoint of another module
+/// refiner: vertex, edge, regularizer), samples_per_s, seconds, val_loss (empty on steps without
+/// validation); a resumed run drops the rows past the checkpoint's step and appends. The skinning
+/// predictor's variant (options.networks.skinning.variant, or the resumed checkpoint's) names its
+/// files (skinning_file_stem). Throws amt::Error on bad input: a checkpoint of another module, run
 /// or version, a dataset whose skeleton or fingerprint differs from the checkpoint's, a missing shard.
 TrainResult train_module(ModuleKind kind, const std::vector<std::string>& shards, const TrainOptions& options);
+
+/// Trains the apparel module and the refiner end to end (DESIGN.md section 1, paper section 5.2):
+/// on windows of T = options.window frames of any clip, the apparel module rolls out T - 3 frames
+/// from 3 ground-truth states (eq. 11), the result is tiled with B̂ (LBS with the weights of
+/// options.skinning_checkpoint, or the ground-truth ones) and refined (eq. 16); the loss is
+/// L_a + L_j and flows through Â into the apparel module. Characters without apparel contribute
+/// L_j only. Writes <out_dir>/apparel.ckpt and <out_dir>/refiner.ckpt (each module with its own AdamW
+/// state, at the same step; loadable like those of train_module) and the log
+/// <out_dir>/apparel_refiner.csv with the terms apparel_vertex, apparel_edge, refiner_vertex,
+/// refiner_edge, refiner_regularizer. Resumes from options.resume (the refiner's checkpoint) and
+/// options.apparel_checkpoint (default: apparel.ckpt next to it); both must come from an end-to-end
+/// run and be at the same step.
+TrainResult train_apparel_refiner(const std::vector<std::string>& shards, const TrainOptions& options);
 
 }  // namespace amt

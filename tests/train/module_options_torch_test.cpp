@@ -62,5 +62,22 @@ TEST(ModuleOptions, BadFieldsAreNamed) {
   EXPECT_THROW(options_from_json("not json", "x.ckpt", r), Error);
 }
 
+TEST(ModuleOptions, SkinningVariantNamesAndFileStems) {
+  EXPECT_EQ(parse_skinning_variant("geodesic", "--variant"), SkinningVariant::kGeodesicAttention);
+  EXPECT_EQ(parse_skinning_variant("no_geodesic", "--variant"), SkinningVariant::kNoGeodesic);
+  EXPECT_EQ(parse_skinning_variant("sorted", "--variant"), SkinningVariant::kSortByGeodesic);
+  EXPECT_EQ(parse_skinning_variant("sort_by_geodesic", "--variant"), SkinningVariant::kSortByGeodesic);
+  EXPECT_STREQ(skinning_variant_name(SkinningVariant::kNoGeodesic), "no_geodesic");
+  EXPECT_EQ(skinning_file_stem(SkinningVariant::kGeodesicAttention), "skinning");
+  EXPECT_EQ(skinning_file_stem(SkinningVariant::kNoGeodesic), "skinning_no_geodesic");
+  EXPECT_EQ(skinning_file_stem(SkinningVariant::kSortByGeodesic), "skinning_sorted");
+  try {
+    parse_skinning_variant("rignet", "--variant");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "--variant: expected geodesic, no_geodesic or sorted, found 'rignet'");
+  }
+}
+
 }  // namespace
 }  // namespace amt

@@ -1,22 +1,31 @@
-// Trainers (train/trainer.h) on the micro dataset: a resumed run repeats the uninterrupted loss curve
-// bit for bit, short runs lower the loss of every module, bad input gives one clear error, and the
-// `amt train` command works end to end.
+// Trainers (train/trainer.h) on the micro dataset: a resumed run repeats the uninterrupted loss and
+// validation curves bit for bit, short runs lower the loss of every module and of the end-to-end
+// apparel + refiner run, skinning variants write their own loadable checkpoints, bad input gives one
+// clear error, and the `amt train` command works end to end.
 #include "train/trainer.h"
 
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <numeric>
+#include <sstream>
 #include <string>
 
+#include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/lbs.h"
+#include "data_tools/procedural_motion.h"
+#include "data_tools/threads.h"
 #include "micro_dataset.h"
 #include "train/module_options.h"
+#include "train/samples.h"
 
 namespace amt {
 namespace {
@@ -37,12 +46,47 @@ const std::string& micro_dataset() {
   return path;
 }
 
+// The micro dataset with held-out data: its character again as "capsules_test" (split test) and
+// the clip walk1 moved onto that copy as a test clip; walk0 stays the only training clip.
+const std::string& split_dataset() {
+  static const std::string path = [] {
+    const std::string p = (test_dir() / "split.h5").string();
+    DatasetReader reader(micro_dataset());
+    DatasetWriter writer(p, reader.fps(), reader.joint_names());
+    CharacterData character = reader.read_character("capsules");
+    writer.add_character(character);
+    character.name = "capsules_test";
+    character.split = "test";
+    writer.add_character(character);
+    const int J = reader.num_joints(), N = character.mesh.num_vertices();
+    for (const std::string& name : reader.clip_names()) {
+      ClipInfo clip = reader.clip_info(name);
+      if (name == "walk1") {
+        clip.character = "capsules_test";
+        clip.split = "test";
+      }
+      writer.begin_clip(clip);
+      const Transforms joints = reader.read_joint_transforms(name, 0, clip.num_frames);
+      const MatrixX3f vertices = reader.read_vertices(name, 0, clip.num_frames);
+      for (int t = 0; t < clip.num_frames; ++t) {
+        const Transforms frame(joints.begin() + t * J, joints.begin() + (t + 1) * J);
+        writer.append_frame(frame, MatrixX3f(vertices.middleRows(t * N, N)));
+      }
+      writer.end_clip();
+    }
+    writer.commit();
+    return p;
+  }();
+  return path;
+}
+
 TrainOptions tiny_options(const std::string& out) {
   TrainOptions o;
   o.out_dir = (test_dir() / out).string();
   o.progress = false;
   o.loader_threads = 1;
   o.checkpoint_every = 0;
+  o.validate_every = 0;
   o.seed = 4;
   o.networks.segmenter.encoder_widths = {16, 32};
   o.networks.segmenter.decoder_widths = {16};
@@ -79,6 +123,29 @@ int count_lines(const std::string& path) {
   return n;
 }
 
+// The cells of column `column` of a CSV log, one per row after the header.
+std::vector<std::string> csv_column(const std::string& path, const std::string& column) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  const auto split = [](const std::string& row) {
+    std::vector<std::string> cells;
+    std::stringstream stream(row);
+    std::string cell;
+    while (std::getline(stream, cell, ',')) cells.push_back(cell);
+    if (!row.empty() && row.back() == ',') cells.push_back("");
+    return cells;
+  };
+  const std::vector<std::string> header = split(line);
+  const size_t index = std::find(header.begin(), header.end(), column) - header.begin();
+  std::vector<std::string> cells;
+  while (std::getline(in, line)) {
+    const std::vector<std::string> row = split(line);
+    cells.push_back(index < row.size() ? row[index] : "(missing)");
+  }
+  return cells;
+}
+
 }  // namespace
 
 // Prints the module's name in test messages.
@@ -98,30 +165,46 @@ TEST_P(ResumeEquality, TenPlusTenStepsEqualTwentyStraight) {
   straight.steps = 20;
   straight.batch = 2;
   straight.learning_rate = 1e-3;
+  straight.validate_every = 5;
+  straight.validation_samples = 2;
   if (kind == ModuleKind::kRefiner) {  // the refiner trains on a (briefly) trained apparel module
     TrainOptions apparel = tiny_options("refiner_input");
     apparel.steps = 3;
-    straight.apparel_checkpoint = train_module(ModuleKind::kApparel, {micro_dataset()}, apparel).checkpoint;
+    straight.apparel_checkpoint = train_module(ModuleKind::kApparel, {split_dataset()}, apparel).checkpoint;
   }
-  const TrainResult a = train_module(kind, {micro_dataset()}, straight);
+  const TrainResult a = train_module(kind, {split_dataset()}, straight);
   ASSERT_EQ(a.losses.size(), 20u);
+  EXPECT_EQ(a.validation_steps, (std::vector<int64_t>{5, 10, 15, 20}));
+  // The val_loss column holds the validation losses on their steps and nothing elsewhere.
+  const std::vector<std::string> val = csv_column(a.log, "val_loss");
+  ASSERT_EQ(val.size(), 20u);
+  for (size_t i = 0; i < val.size(); ++i) {
+    if ((i + 1) % 5 != 0) {
+      EXPECT_EQ(val[i], "") << "row " << i + 1;
+    } else {
+      EXPECT_NEAR(std::stod(val[i]), a.validation_losses[i / 5], 1e-7 * a.validation_losses[i / 5]);
+    }
+  }
 
   TrainOptions first = straight;
   first.out_dir = (test_dir() / ("split_" + name)).string();
   first.steps = 10;
   first.loader_threads = 2;  // threads change when samples are read, never which
-  const TrainResult b1 = train_module(kind, {micro_dataset()}, first);
+  const TrainResult b1 = train_module(kind, {split_dataset()}, first);
   TrainOptions second = first;
   second.steps = 20;
   second.resume = b1.checkpoint;
   second.seed = 1234;  // ignored: the run settings come from the checkpoint
   second.learning_rate = 0.5;
-  const TrainResult b2 = train_module(kind, {micro_dataset()}, second);
+  const TrainResult b2 = train_module(kind, {split_dataset()}, second);
   EXPECT_EQ(b2.first_step, 10);
   std::vector<double> resumed = b1.losses;
   resumed.insert(resumed.end(), b2.losses.begin(), b2.losses.end());
   ASSERT_EQ(resumed.size(), a.losses.size());
   for (size_t i = 0; i < resumed.size(); ++i) EXPECT_EQ(resumed[i], a.losses[i]) << name << " step " << i + 1;
+  std::vector<double> validation = b1.validation_losses;
+  validation.insert(validation.end(), b2.validation_losses.begin(), b2.validation_losses.end());
+  EXPECT_EQ(validation, a.validation_losses);
   EXPECT_EQ(count_lines(b2.log), 21);  // header + 20 steps
 }
 
@@ -150,6 +233,106 @@ TEST(Trainer, ShortRunsLowerTheLossOfEveryModule) {
   EXPECT_LT(mean(r.losses, 30, 10), mean(r.losses, 0, 10));
   std::printf("refiner: %.2f ms/step, %.1f samples/s, loss %.4g -> %.4g\n", 1e3 * r.seconds_per_step,
               r.samples_per_second, mean(r.losses, 0, 10), mean(r.losses, 30, 10));
+}
+
+TEST(EndToEnd, LowersTheLossResumesBitExactlyAndWritesBothModules) {
+  test::use_one_thread();
+  TrainOptions straight = tiny_options("e2e_straight");
+  straight.steps = 30;
+  straight.learning_rate = 3e-3;
+  straight.validate_every = 10;
+  straight.validation_samples = 2;
+  const TrainResult a = train_apparel_refiner({split_dataset()}, straight);
+  ASSERT_EQ(a.losses.size(), 30u);
+  EXPECT_LT(mean(a.losses, 25, 5), 0.7 * mean(a.losses, 0, 5));
+  ASSERT_EQ(a.validation_losses.size(), 3u);
+  EXPECT_LT(a.validation_losses[2], a.validation_losses[0]);
+  std::printf("apparel_refiner: %.2f ms/step, loss %.4g -> %.4g, val %.4g -> %.4g\n", 1e3 * a.seconds_per_step,
+              mean(a.losses, 0, 5), mean(a.losses, 25, 5), a.validation_losses[0], a.validation_losses[2]);
+
+  // Both checkpoints load as their modules, at the same step, with the options of the run.
+  const fs::path out = straight.out_dir;
+  EXPECT_EQ(a.checkpoints,
+            (std::vector<std::string>{(out / "apparel.ckpt").string(), (out / "refiner.ckpt").string()}));
+  EXPECT_EQ(a.log, (out / "apparel_refiner.csv").string());
+  const CheckpointInfo apparel_info = read_checkpoint_info(a.checkpoints[0], ModuleKind::kApparel);
+  EXPECT_EQ(apparel_info.step, 30);
+  ApparelDisplacementOptions apparel_options;
+  options_from_json(apparel_info.options_json, a.checkpoints[0], apparel_options);
+  EXPECT_EQ(apparel_options.edge_widths, straight.networks.apparel.edge_widths);
+  ApparelDisplacementNet apparel(apparel_options);
+  load_checkpoint(a.checkpoints[0], ModuleKind::kApparel, *apparel, nullptr);
+  JointRefinerOptions refiner_options;
+  options_from_json(read_checkpoint_info(a.checkpoints[1], ModuleKind::kRefiner).options_json, a.checkpoints[1],
+                    refiner_options);
+  JointRefiner refiner(refiner_options);
+  EXPECT_EQ(load_checkpoint(a.checkpoints[1], ModuleKind::kRefiner, *refiner, nullptr).step, 30);
+  EXPECT_EQ(csv_column(a.log, "apparel_vertex").size(), 30u);
+  EXPECT_EQ(csv_column(a.log, "refiner_regularizer").size(), 30u);
+
+  // 12 + 18 steps equal 30 straight, losses and validation losses alike.
+  TrainOptions first = straight;
+  first.out_dir = (test_dir() / "e2e_split").string();
+  first.steps = 12;
+  first.loader_threads = 2;
+  const TrainResult b1 = train_apparel_refiner({split_dataset()}, first);
+  TrainOptions second = first;
+  second.steps = 30;
+  second.resume = b1.checkpoint;
+  second.learning_rate = 0.5;  // ignored: from the checkpoint
+  const TrainResult b2 = train_apparel_refiner({split_dataset()}, second);
+  std::vector<double> resumed = b1.losses;
+  resumed.insert(resumed.end(), b2.losses.begin(), b2.losses.end());
+  ASSERT_EQ(resumed.size(), a.losses.size());
+  for (size_t i = 0; i < resumed.size(); ++i) EXPECT_EQ(resumed[i], a.losses[i]) << "step " << i + 1;
+  EXPECT_EQ(b1.validation_steps, (std::vector<int64_t>{10, 12}));
+  EXPECT_EQ(b2.validation_steps, (std::vector<int64_t>{20, 30}));
+  EXPECT_EQ(b1.validation_losses[0], a.validation_losses[0]);
+  EXPECT_EQ(b2.validation_losses, (std::vector<double>{a.validation_losses[1], a.validation_losses[2]}));
+
+  // A single-module run does not resume an end-to-end checkpoint, nor the reverse.
+  TrainOptions single = second;
+  single.steps = 40;
+  single.apparel_checkpoint = a.checkpoints[0];
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kRefiner, {split_dataset()}, single); }),
+            b1.checkpoint + ": config.mode: expected 'single', found 'apparel_refiner' (an end-to-end run resumes " +
+                "with amt train apparel_refiner)");
+  TrainOptions refiner_only = tiny_options("e2e_refiner_only");
+  refiner_only.steps = 2;
+  refiner_only.apparel_checkpoint = a.checkpoints[0];
+  TrainOptions reverse = tiny_options("e2e_reverse");
+  reverse.steps = 4;
+  reverse.resume = train_module(ModuleKind::kRefiner, {split_dataset()}, refiner_only).checkpoint;
+  EXPECT_EQ(error_of([&] { train_apparel_refiner({split_dataset()}, reverse); }),
+            reverse.resume + ": config.mode: expected 'apparel_refiner', found 'single' (a single-module run " +
+                "resumes with amt train <module>)");
+}
+
+TEST(Trainer, SkinningVariantsWriteCheckpointsThatLoadWithTheirOptions) {
+  test::use_one_thread();
+  for (SkinningVariant variant : {SkinningVariant::kNoGeodesic, SkinningVariant::kSortByGeodesic}) {
+    TrainOptions o = tiny_options("variants");
+    o.steps = 3;
+    o.networks.skinning.variant = variant;
+    const TrainResult r = train_module(ModuleKind::kSkinning, {micro_dataset()}, o);
+    const std::string stem = skinning_file_stem(variant);
+    EXPECT_EQ(r.checkpoint, (fs::path(o.out_dir) / (stem + ".ckpt")).string());
+    EXPECT_EQ(r.log, (fs::path(o.out_dir) / (stem + ".csv")).string());
+    const CheckpointInfo info = read_checkpoint_info(r.checkpoint, ModuleKind::kSkinning);
+    SkinningPredictorOptions options;
+    options_from_json(info.options_json, r.checkpoint, options);
+    EXPECT_EQ(options.variant, variant);
+    SkinningPredictor net(options);
+    EXPECT_EQ(load_checkpoint(r.checkpoint, ModuleKind::kSkinning, *net, nullptr).step, 3);
+
+    // Resuming keeps the variant and its file names whatever the fresh options say.
+    TrainOptions resume = o;
+    resume.steps = 4;
+    resume.resume = r.checkpoint;
+    resume.networks.skinning.variant = SkinningVariant::kGeodesicAttention;
+    EXPECT_EQ(train_module(ModuleKind::kSkinning, {micro_dataset()}, resume).checkpoint, r.checkpoint);
+  }
+  EXPECT_EQ(skinning_file_stem(SkinningVariant::kGeodesicAttention), "skinning");
 }
 
 TEST(Trainer, BadInputGivesOneClearError) {
@@ -210,6 +393,12 @@ TEST(TrainCommand, TrainsAndResumesFromTheCommandLine) {
   EXPECT_EQ(read_checkpoint_info(out + "/segmenter.ckpt").step, 5);
   EXPECT_EQ(count_lines(out + "/segmenter.csv"), 6);
 
+  ASSERT_EQ(std::system((std::string(AMT_BINARY) + " train skinning --variant sorted --steps 2 --data " +
+                         micro_dataset() + " --out " + out + " --threads 1 --quiet > /dev/null")
+                            .c_str()),
+            0);
+  EXPECT_EQ(read_checkpoint_info(out + "/skinning_sorted.ckpt", ModuleKind::kSkinning).step, 2);
+
   const std::string err = out + "/stderr.txt";
   EXPECT_NE(
       std::system(
@@ -220,6 +409,94 @@ TEST(TrainCommand, TrainsAndResumesFromTheCommandLine) {
   std::getline(in, line);
   EXPECT_EQ(line,
             "amt: error: " + out + "/none.h5: no such file or folder (expected a dataset shard or a folder of *.h5)");
+}
+
+}  // namespace
+}  // namespace amt
+
+namespace amt {
+namespace {
+
+// === Profile (disabled: a measurement, not a test; run with --gtest_also_run_disabled_tests)
+
+// A character of about `vertices` vertices whose lower body (the capsules of the pelvis, hips,
+// knees, ... in skeleton order until `apparel_share` of the vertices) is apparel trailing the body
+// by two frames, with `clips` walks of `frames` frames (the last one held out as "test"): the size
+// of a default dataset character.
+void write_profile_dataset(const std::string& path, int vertices, double apparel_share, int clips, int frames) {
+  const Skeleton skeleton = canonical_skeleton();
+  CharacterData character = capsule_example_character(skeleton, vertices);
+  const int N = character.mesh.num_vertices();
+  int apparel = 0;
+  for (int j : {kPelvis, kLeftHip, kRightHip, kLeftKnee, kRightKnee, kSpine1, kLeftAnkle, kRightAnkle}) {
+    if (apparel >= apparel_share * N) break;
+    for (int i = 0; i < N; ++i) {
+      if (character.body_weights(i, j) == 1.0f) {
+        character.apparel_mask[i] = 1;
+        ++apparel;
+      }
+    }
+  }
+  DatasetWriter writer(path, 30.0f, skeleton.names);
+  writer.add_character(character);
+  const SparseWeights weights = sparsify_weights(character.body_weights);
+  for (int c = 0; c < clips; ++c) {
+    Motion walk = walk_motion(frames, 30.0f, 1.0f + 0.3f * c);
+    walk.joint_names = skeleton.names;
+    ClipInfo clip;
+    clip.name = "walk" + std::to_string(c);
+    clip.character = character.name;
+    clip.motion = "procedural_walk";
+    clip.split = c + 1 == clips && clips > 1 ? "test" : "train";  // the last clip is held out
+    writer.begin_clip(clip);
+    std::vector<MatrixX3f> posed(frames);
+    for (int t = 0; t < frames; ++t) {
+      const Transforms joints = forward_kinematics(skeleton, walk, t);
+      linear_blend_skinning(character.mesh.V, weights, skinning_matrices(skeleton, joints), posed[t]);
+      MatrixX3f gt = posed[t];
+      for (int i = 0; i < N; ++i) {
+        if (character.apparel_mask[i]) gt.row(i) = posed[std::max(t - 2, 0)].row(i);
+      }
+      writer.append_frame(joints, gt);
+    }
+    writer.end_clip();
+  }
+  writer.commit();
+  std::printf("profile character: %d vertices, %d apparel (%.0f %%)\n", N, apparel, 100.0 * apparel / N);
+}
+
+TEST(TrainerProfile, DISABLED_StepTimesOnAFiveThousandVertexCharacter) {
+  set_thread_count(2);
+  // AMT_PROFILE_DATA=file keeps the dataset (e.g. for trying scripts/train_pretrained.sh on it).
+  const char* keep = std::getenv("AMT_PROFILE_DATA");
+  const std::string data = keep ? keep : (test_dir() / "profile.h5").string();
+  write_profile_dataset(data, 5000, 0.3, 4, 90);
+  {
+    SampleSourceOptions sampling;
+    sampling.kind = ModuleKind::kApparel;
+    SampleSource source({data}, sampling);
+    source.get(0);  // character tensors
+    const auto start = std::chrono::steady_clock::now();
+    for (int k = 1; k <= 20; ++k) source.get(k);
+    std::printf("sample loading: %.2f ms per 10-frame window\n",
+                1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 20);
+  }
+  TrainOptions o;
+  o.out_dir = (test_dir() / "profile").string();
+  o.progress = false;
+  o.checkpoint_every = 0;
+  o.validate_every = 0;
+  o.loader_threads = 1;
+  o.steps = 6;
+  for (ModuleKind kind : {ModuleKind::kSegmenter, ModuleKind::kSkinning, ModuleKind::kApparel}) {
+    const TrainResult r = train_module(kind, {data}, o);
+    std::printf("%s (default options): %.1f ms/step, %.2f samples/s\n", module_kind_name(kind),
+                1e3 * r.seconds_per_step, r.samples_per_second);
+  }
+  o.skinning_checkpoint = (fs::path(o.out_dir) / "skinning.ckpt").string();
+  const TrainResult r = train_apparel_refiner({data}, o);
+  std::printf("apparel_refiner (default options): %.1f ms/step, %.2f samples/s\n", 1e3 * r.seconds_per_step,
+              r.samples_per_second);
 }
 
 }  // namespace
