@@ -8,9 +8,28 @@
 #include <cstdio>
 #include <functional>
 #include <random>
+#include <unistd.h>
+#include <cmath>
 
+#include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
+#include <torch/utils.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "amt/version.h"
 #include "app/commands.h"
+#include "data_tools/apparel.h"
+#include "data_tools/body_generator.h"
 #include "data_tools/error.h"
+#include "data_tools/lbs_torch.h"
+#include "data_tools/retarget.h"
+#include "data_tools/threads.h"
+#include "infer/glb_stream_writer.h"
+#include "infer/runtime_torch.h"
+#include "models/joint_refiner.h"
 #include "data_tools/geodesic.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
@@ -24,6 +43,9 @@ struct BenchOptions {
   int vertices = 20000;
   int repeats = 30;
   std::vector<std::string> suites = {"lbs", "geodesic"};
+  std::vector<int> runtime_sizes = {5000, 20000, 50000};
+  std::vector<int> runtime_threads = {1, 2};
+  std::string model = AMT_SOURCE_DIR "/models/pretrained";
 };
 
 // Median wall time in seconds of `repeats` calls of fn, after one warm-up call.
@@ -43,6 +65,20 @@ double peak_resident_mb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return usage.ru_maxrss / 1024.0;
+}
+
+// Current resident memory (VmRSS), MB.
+double resident_mb() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "VmRSS:") {
+      double kb = 0;
+      status >> kb;
+      return kb / 1024.0;
+    }
+  }
+  return 0.0;
 }
 
 // LBS throughput with 4 influences per vertex over frames of a walk.
@@ -85,6 +121,104 @@ void bench_geodesic(const BenchOptions& o) {
               mesh.num_vertices(), s.num_joints(), 1e3 * seconds, repeats);
 }
 
+
+// Median and 95th percentile of a sample (seconds), sorted in place.
+std::pair<double, double> median_p95(std::vector<double>& v) {
+  std::sort(v.begin(), v.end());
+  const size_t p95 = std::min(v.size() - 1, size_t(std::ceil(0.95 * double(v.size()))) - 1);
+  return {v[v.size() / 2], v[p95]};
+}
+
+// The shipped networks when `dir` holds them, else freshly initialised ones of the default options
+// (seeded): the per-frame cost depends on the architecture, not on the weights.
+ModelBundle bench_bundle(const std::string& dir, std::string& what) {
+  if (std::filesystem::exists(std::filesystem::path(dir) / kRefinerCheckpoint)) {
+    what = "shipped model " + dir;
+    return load_model_bundle(dir);
+  }
+  what = "freshly initialised networks of the default options (no checkpoints in " + dir + ")";
+  torch::manual_seed(1);
+  ModelBundle b;
+  b.joint_names = canonical_joint_names();
+  b.segmenter = ApparelSegmenter(ApparelSegmenterOptions{});
+  b.skinning = SkinningPredictor(SkinningPredictorOptions{});
+  b.apparel = ApparelDisplacementNet(ApparelDisplacementOptions{});
+  b.refiner = JointRefiner(JointRefinerOptions{});
+  for (torch::nn::Module* m : std::initializer_list<torch::nn::Module*>{b.segmenter.get(), b.skinning.get(),
+                                                                         b.apparel.get(), b.refiner.get()}) {
+    m->eval();
+    for (auto& p : m->parameters()) p.set_requires_grad(false);
+  }
+  return b;
+}
+
+// The runtime (issue 6): generated dressed characters of about `size` vertices with ~30 % apparel,
+// bind time, per-frame latency (median, p95) and its split, peak memory, on 1 and 2 threads.
+void bench_runtime(const BenchOptions& o) {
+  std::string what;
+  ModelBundle bundle = bench_bundle(o.model, what);
+  std::printf("runtime   %s; apparel mask from the dressed character (the GT-mask row); walk motion; "
+              "%d timed frames after a 10-frame lead-in\n", what.c_str(), o.repeats);
+  const std::string scratch = (std::filesystem::temp_directory_path() / ("amt_bench_" + std::to_string(::getpid()))).string();
+  std::filesystem::create_directories(scratch);
+  for (const int size : o.runtime_sizes) {
+    set_thread_count(o.runtime_threads.back());
+    const auto gen_start = std::chrono::steady_clock::now();
+    ApparelOptions dress;
+    dress.vertex_fraction = 0.3f;
+    dress.min_pieces = 2;
+    dress.max_pieces = 3;
+    const GeneratedBody body = generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(size * 0.7)));
+    const DressedCharacter character = dress_character(body, 7, dress);
+    const double gen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - gen_start).count();
+    const int N = character.mesh.num_vertices();
+    int Na = 0;
+    for (uint8_t m : character.apparel_mask) Na += m;
+    const BindResult bind = bind_cached(bundle, character.mesh, body.skeleton.rest_joints, character.apparel_mask, "");
+    std::printf("runtime   %6d vertices (%d apparel, %.0f %%), %d faces: generated in %.1f s, bind %.2f s (%d threads)\n", N,
+                Na, 100.0 * Na / N, character.mesh.num_faces(), gen_seconds, bind.seconds, o.runtime_threads.back());
+    const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
+    for (const int threads : o.runtime_threads) {
+      set_thread_count(threads);
+      for (const bool resolve : {true}) {
+        RuntimeSession session(bundle, bind.bound, character.mesh.F, resolve);
+        const Transforms first = forward_kinematics(body.skeleton, walk, 0);
+        const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
+        for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
+        GlbStreamWriter writer(scratch + "/bench.glb", character.mesh.F, N, 30.0f);
+        std::vector<double> totals, model, pen, out, lbs, app, ref;
+        MatrixX3f V;
+        PenetrationReport report;
+        Penetration before, after;
+        for (int t = 0; t < o.repeats; ++t) {
+          const Transforms T = forward_kinematics(body.skeleton, walk, t);
+          FrameTimes times = session.step(T, V, &report);
+          const auto w = std::chrono::steady_clock::now();
+          writer.append(V);
+          times.output = std::chrono::duration<double>(std::chrono::steady_clock::now() - w).count();
+          totals.push_back(times.total()), model.push_back(times.model), pen.push_back(times.penetration),
+              out.push_back(times.output);
+          before.inside += report.before.inside, before.total += report.before.total;
+          after.inside += report.after.inside, after.total += report.after.total;
+          // Stage split, as the pipeline stepper timed it within this very frame.
+          lbs.push_back(times.stages.lbs), app.push_back(times.stages.apparel), ref.push_back(times.stages.refiner);
+        }
+        const auto [median, p95] = median_p95(totals);
+        std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
+                    "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
+                    "penetration %.2f %% -> %.2f %%; RSS %.0f MB, peak %.0f MB\n",
+                    N, threads, threads > 1 ? "s" : "", 1e3 * median, 1e3 * p95, 1.0 / median, 1e3 * median_p95(model).first,
+                    1e3 * median_p95(lbs).first, 1e3 * median_p95(app).first, 1e3 * median_p95(ref).first,
+                    1e3 * median_p95(pen).first, 1e3 * median_p95(out).first, 100.0 * before.share(),
+                    100.0 * after.share(), resident_mb(), peak_resident_mb());
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::error_code ignored;
+  std::filesystem::remove_all(scratch, ignored);
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -94,8 +228,16 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(100, 5000000))
       ->capture_default_str();
   bench->add_option("--repeats", options->repeats, "Timed repeats per figure")->check(CLI::Range(1, 100000))->capture_default_str();
-  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic")
-      ->check(CLI::IsMember({"lbs", "geodesic"}))
+  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime")
+      ->check(CLI::IsMember({"lbs", "geodesic", "runtime"}))
+      ->capture_default_str();
+  bench->add_option("--runtime-sizes", options->runtime_sizes, "Vertex counts of the runtime suite's characters")
+      ->check(CLI::Range(2000, 200000))
+      ->capture_default_str();
+  bench->add_option("--runtime-threads", options->runtime_threads, "Thread counts of the runtime suite")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  bench->add_option("--model", options->model, "Model folder of the runtime suite (fresh networks when absent)")
       ->capture_default_str();
   add_threads_option(*bench);
   bench->callback([options] {
@@ -103,6 +245,7 @@ void add_bench_command(CLI::App& app) {
     for (const std::string& suite : options->suites) {
       if (suite == "lbs") bench_lbs(*options);
       if (suite == "geodesic") bench_geodesic(*options);
+      if (suite == "runtime") bench_runtime(*options);
     }
     std::printf("peak resident memory: %.0f MB\n", peak_resident_mb());
   });

@@ -11,8 +11,14 @@ void add_dataset_command(CLI::App& app);
 /// `amt train <module>`: train a module on dataset shards, with checkpoints and resume.
 void add_train_command(CLI::App& app);
 
+/// `amt eval`: PMD / ELS / penetration tables of a model on held-out data, as a Markdown report.
+void add_eval_command(CLI::App& app);
+
 /// `amt bench`: speed and memory figures.
 void add_bench_command(CLI::App& app);
+
+/// `amt animate`: a character and a motion -> an animated GLB, OBJ folder or dataset file (infer/).
+void add_animate_command(CLI::App& app);
 
 /// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
 void add_threads_option(CLI::App& command);

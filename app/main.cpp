@@ -40,6 +40,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   amt::app::add_dataset_command(app);
   amt::app::add_train_command(app);
+  amt::app::add_eval_command(app);
+  amt::app::add_animate_command(app);
   amt::app::add_bench_command(app);
   try {
     app.parse(argc, argv);

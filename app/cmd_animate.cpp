@@ -1,0 +1,68 @@
+// `amt animate`: a character and a motion -> an animated GLB, an OBJ folder or a dataset file
+// (infer/runtime_torch.h). Prints the joint mappings, a progress line and a summary.
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "amt/version.h"
+#include "app/commands.h"
+#include "data_tools/error.h"
+#include "infer/runtime_torch.h"
+
+namespace amt::app {
+
+void add_animate_command(CLI::App& app) {
+  auto o = std::make_shared<AnimateOptions>();
+  o->model_dir = AMT_SOURCE_DIR "/models/pretrained";
+  auto fps = std::make_shared<double>(0.0);
+  auto bvh_scale = std::make_shared<double>(0.0);
+  auto no_resolve = std::make_shared<bool>(false);
+  auto quiet = std::make_shared<bool>(false);
+  auto* cmd = app.add_subcommand("animate", "Animate a character with a motion: apparel dynamics on the CPU");
+  cmd->add_option("--character", o->character.spec,
+                  "Character: .glb/.gltf (rigged), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
+                  "generated:SEED[:VERTICES]")
+      ->required();
+  cmd->add_option("--motion", o->motion.spec, "Motion: .bvh, .glb/.gltf animation, or data.h5:clip")->required();
+  cmd->add_option("--model", o->model_dir, "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner)")
+      ->capture_default_str();
+  cmd->add_option("--out", o->out,
+                  "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ files")
+      ->required();
+  cmd->add_option("--bind", o->bind_path,
+                  "Bind cache file (default: <out>.bind beside the output; 'none' disables it)");
+  cmd->add_option("--character-joints", o->character.joints, "Joints JSON giving the skeleton of an unrigged mesh");
+  cmd->add_option("--character-joint-map", o->character.joint_map, "JSON map {canonical joint: character joint}");
+  cmd->add_option("--motion-joint-map", o->motion.joint_map, "JSON map {canonical joint: motion joint}");
+  cmd->add_option("--clip", o->motion.clip, "glTF animation clip name (default: the first)");
+  cmd->add_option("--bvh-scale", *bvh_scale, "Metres per BVH unit (default: detected)")
+      ->check(CLI::Range(1e-6, 1000.0));
+  cmd->add_option("--apparel-mask", o->apparel_mask,
+                  "Per-vertex 0/1 apparel mask (JSON array or text); overrides the segmenter");
+  cmd->add_option("--fps", *fps, "Output frame rate (default: 30 for BVH/glTF motions, a dataset clip's own rate)")
+      ->check(CLI::Range(0.001, 1000.0));
+  cmd->add_option("--frames", o->playback.frames, "At most this many frames (0: all)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--lead-in", o->playback.lead_in,
+                  "Frames blending from the rest pose into the first frame (not written)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  cmd->add_flag("--no-resolve-penetration", *no_resolve, "Do not push apparel out of the body");
+  cmd->add_option("--penetration-margin", o->penetration.margin,
+                  "Distance outside the body a pushed vertex ends at, metres")
+      ->check(CLI::Range(0.0, 0.1))
+      ->capture_default_str();
+  cmd->add_flag("--quiet", *quiet, "No mapping and progress lines on stderr");
+  add_threads_option(*cmd);
+  cmd->callback([o, fps, bvh_scale, no_resolve, quiet] {
+    AnimateOptions options = *o;
+    if (*fps > 0) options.playback.fps = float(*fps);
+    if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;
+    options.resolve_penetration = !*no_resolve;
+    options.verbose = !*quiet;
+    const AnimateSummary summary = animate(options);
+    std::cout << describe(summary) << std::flush;
+  });
+}
+
+}  // namespace amt::app

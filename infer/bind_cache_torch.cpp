@@ -1,0 +1,177 @@
+#include <ATen/ATen.h>
+#include <torch/serialize/input-archive.h>
+#include <torch/serialize/output-archive.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "data_tools/atomic_file.h"
+#include "data_tools/error.h"
+#include "infer/bind_cache_torch.h"
+
+namespace amt {
+
+namespace {
+
+// The BoundCharacter fields stored, by archive key.
+std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
+  return {{"V", &BoundCharacter::V},
+          {"faces", &BoundCharacter::faces},
+          {"joints", &BoundCharacter::joints},
+          {"edges", &BoundCharacter::edges},
+          {"apparel_prob", &BoundCharacter::apparel_prob},
+          {"apparel_mask", &BoundCharacter::apparel_mask},
+          {"refiner_prob", &BoundCharacter::refiner_prob},
+          {"apparel_ids", &BoundCharacter::apparel_ids},
+          {"body_ids", &BoundCharacter::body_ids},
+          {"body_edges", &BoundCharacter::body_edges},
+          {"apparel_edges", &BoundCharacter::apparel_edges},
+          {"apparel_neighbors", &BoundCharacter::apparel_neighbors},
+          {"G_body", &BoundCharacter::G_body},
+          {"body_weights", &BoundCharacter::body_weights},
+          {"vertex_weights", &BoundCharacter::vertex_weights}};
+}
+
+uint64_t hash_file(const std::string& path, uint64_t hash) {
+  std::ifstream in(path, std::ios::binary);
+  AMT_CHECK(in.good(), path, ": bind key: expected a readable checkpoint, found none");
+  std::vector<char> chunk(size_t(1) << 20);
+  while (in) {
+    in.read(chunk.data(), std::streamsize(chunk.size()));
+    hash = fnv1a64(chunk.data(), size_t(in.gcount()), hash);
+  }
+  return hash;
+}
+
+}  // namespace
+
+uint64_t fnv1a64(const void* data, size_t size, uint64_t hash) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < size; ++i) hash = (hash ^ p[i]) * 1099511628211ull;
+  return hash;
+}
+
+std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
+                     const ModelBundle& bundle) {
+  uint64_t h = kFnvOffset;
+  const int64_t sizes[4] = {mesh.V.rows(), mesh.F.rows(), joints.rows(), int64_t(mask_override.size())};
+  h = fnv1a64(sizes, sizeof(sizes), h);
+  h = fnv1a64(mesh.V.data(), size_t(mesh.V.size()) * sizeof(float), h);
+  h = fnv1a64(mesh.F.data(), size_t(mesh.F.size()) * sizeof(int32_t), h);
+  h = fnv1a64(joints.data(), size_t(joints.size()) * sizeof(float), h);
+  h = fnv1a64(mask_override.data(), mask_override.size(), h);
+  for (const std::string& name : bundle.joint_names) h = fnv1a64(name.data(), name.size() + 1, h);
+  if (!bundle.dir.empty()) {
+    for (const char* file : {kSegmenterCheckpoint, kSkinningCheckpoint, kApparelCheckpoint, kRefinerCheckpoint}) {
+      h = hash_file((std::filesystem::path(bundle.dir) / file).string(), h);
+    }
+  } else {
+    // A bundle assembled in code: hash its parameters.
+    for (const torch::nn::Module* m : {static_cast<const torch::nn::Module*>(bundle.segmenter.get()),
+                                       static_cast<const torch::nn::Module*>(bundle.skinning.get()),
+                                       static_cast<const torch::nn::Module*>(bundle.apparel.get()),
+                                       static_cast<const torch::nn::Module*>(bundle.refiner.get())}) {
+      if (!m) continue;
+      for (const at::Tensor& p : m->parameters()) {
+        const at::Tensor c = p.detach().to(at::kFloat).contiguous();
+        h = fnv1a64(c.data_ptr<float>(), size_t(c.numel()) * sizeof(float), h);
+      }
+    }
+  }
+  char text[40];
+  std::snprintf(text, sizeof(text), "fnv1a64:%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound) {
+  torch::serialize::OutputArchive archive;
+  archive.write("format", c10::IValue(std::string(kBindFormat)));
+  archive.write("version", c10::IValue(kBindVersion));
+  archive.write("key", c10::IValue(key));
+  for (const auto& [name, member] : fields()) {
+    const at::Tensor& t = bound.*member;
+    if (t.defined()) archive.write(name, t.clone());  // clone: inference tensors cannot be saved as views
+  }
+  create_parent_folder(path);
+  const std::string temporary = temporary_path(path);
+  try {
+    archive.save_to(temporary);
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(temporary, ignored);
+    std::string what = e.what();
+    fail(temporary, ": cannot write the bind cache (", what.substr(0, what.find('\n')), ")");
+  }
+  replace_with_temporary(temporary, path);
+}
+
+bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason) {
+  auto miss = [reason](const std::string& why) {
+    if (reason) *reason = why;
+    return false;
+  };
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) return miss("no cache file");
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const std::exception&) {
+    return miss("unreadable cache file");
+  }
+  c10::IValue value;
+  if (!archive.try_read("format", value) || !value.isString() || value.toStringRef() != kBindFormat) {
+    return miss("not an amt bind file");
+  }
+  if (!archive.try_read("version", value) || !value.isInt() || value.toInt() != kBindVersion) {
+    return miss("another bind file version");
+  }
+  if (!archive.try_read("key", value) || !value.isString()) return miss("no key");
+  if (value.toStringRef() != key) return miss("another mesh or model (key " + value.toStringRef() + ")");
+  BoundCharacter loaded;
+  for (const auto& [name, member] : fields()) {
+    at::Tensor t;
+    if (archive.try_read(name, t)) loaded.*member = t;
+  }
+  for (const char* required : {"V", "faces", "joints", "edges", "apparel_mask", "refiner_prob", "apparel_ids",
+                               "body_ids", "apparel_neighbors", "body_weights"}) {
+    at::Tensor t;
+    if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
+  }
+  bound = std::move(loaded);
+  if (reason) reason->clear();
+  return true;
+}
+
+BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
+                       const std::vector<uint8_t>& mask_override, const std::string& cache_path) {
+  const auto start = std::chrono::steady_clock::now();
+  BindResult result;
+  std::string key;
+  if (!cache_path.empty()) {
+    key = bind_key(mesh, joints, mask_override, bundle);
+    result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
+  } else {
+    result.reason = "cache disabled";
+  }
+  if (!result.cache_hit) {
+    const at::Tensor V = at::from_blob(const_cast<float*>(mesh.V.data()), {mesh.V.rows(), 3}, at::kFloat).clone();
+    const at::Tensor F = at::from_blob(const_cast<int32_t*>(mesh.F.data()), {mesh.F.rows(), 3}, at::kInt).to(at::kLong);
+    const at::Tensor Jt = at::from_blob(const_cast<float*>(joints.data()), {joints.rows(), 3}, at::kFloat).clone();
+    BindOptions options;
+    if (!mask_override.empty()) {
+      AMT_CHECK(int64_t(mask_override.size()) == mesh.V.rows(), "--apparel-mask: expected ", mesh.V.rows(),
+                " values, found ", mask_override.size());
+      options.apparel_mask =
+          at::from_blob(const_cast<uint8_t*>(mask_override.data()), {int64_t(mask_override.size())}, at::kByte)
+              .to(at::kBool);
+    }
+    result.bound = bind_character(bundle, V, F, Jt, options);
+    if (!cache_path.empty()) save_bind(cache_path, key, result.bound);
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace amt

@@ -1,0 +1,59 @@
+#pragma once
+// The bind cache (issue 6, item 2): the result of bind_character (train/pipeline.h), stored in one
+// file so that animating the same character again skips segmentation, geodesics, skinning weights and
+// the apparel graph. The file is keyed by a hash of everything the bind depends on: the rest mesh,
+// the rest joints, an apparel-mask override, and the bytes of the model's checkpoint files. A changed
+// mesh or model gives another key, and the stale file is recomputed and replaced.
+//
+// File: a torch::serialize archive (TorchScript zip) with format "amt-bind", version 1, the key, and
+// one tensor per BoundCharacter field; written to "<path>.tmp" and renamed.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "data_tools/mesh.h"
+#include "train/pipeline.h"
+
+namespace amt {
+
+/// Value of the archive key `format`, and the version written and read.
+inline constexpr const char* kBindFormat = "amt-bind";
+inline constexpr int64_t kBindVersion = 1;
+
+/// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
+inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;
+uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
+
+/// The key of a bind: "fnv1a64:<16 hex>" over the mesh (V #V by 3, F #F by 3), rest joints (#J by 3),
+/// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
+/// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded). Throws amt::Error when a
+/// checkpoint file cannot be read.
+std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
+                     const ModelBundle& bundle);
+
+/// Writes a bound character and its key to `path` (through "<path>.tmp"). Throws amt::Error when the
+/// file cannot be written.
+void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound);
+
+/// Reads a bound character if `path` holds one with `key`. Returns false (and leaves `bound` alone)
+/// when the file is missing, of another format or version, damaged, or made for another key;
+/// `reason` then says which ("no file", "another mesh or model", ...).
+bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason = nullptr);
+
+/// What bind_cached did.
+struct BindResult {
+  BoundCharacter bound;
+  /// True when the cache file was used; `reason` says why it was not otherwise.
+  bool cache_hit = false;
+  std::string reason;
+  /// Wall time of the bind or of reading the cache, seconds.
+  double seconds = 0.0;
+};
+
+/// Loads the bind from `cache_path` when its key matches, else binds (bind_character with the mask
+/// override, if any) and writes the cache. An empty `cache_path` disables the cache.
+///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1)
+BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
+                       const std::vector<uint8_t>& mask_override, const std::string& cache_path);
+
+}  // namespace amt

@@ -1,0 +1,324 @@
+#include "infer/character_input.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "data_tools/apparel.h"
+#include "data_tools/body_generator.h"
+#include "data_tools/dataset_file.h"
+#include "data_tools/error.h"
+#include "data_tools/gltf_import.h"
+#include "data_tools/obj_io.h"
+#include "data_tools/pmx_import.h"
+
+namespace amt {
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string e = std::filesystem::path(path).extension().string();
+  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return e;
+}
+
+const char* kind_name(JointMatchKind kind) {
+  switch (kind) {
+    case JointMatchKind::kUserMap:
+      return "joint map";
+    case JointMatchKind::kNameTable:
+      return "name";
+    case JointMatchKind::kStructure:
+      return "structure";
+  }
+  return "?";
+}
+
+// The first canonical child of j, in canonical order, or -1 for a leaf.
+int first_child(int j) {
+  const auto& parents = canonical_joint_parents();
+  for (int c = j + 1; c < kCanonicalJointCount; ++c) {
+    if (parents[size_t(c)] == j) return c;
+  }
+  return -1;
+}
+
+}  // namespace
+
+// === Canonical rest skeleton
+
+std::vector<int> place_missing_joints(MatrixX3f& rest_joints, const JointMapping& mapping) {
+  const auto& cparents = canonical_joint_parents();
+  const MatrixX3f reference = canonical_skeleton().rest_joints;  // canonical proportions, for leaves
+  std::vector<bool> placed(kCanonicalJointCount, false);
+  for (int j = 1; j < kCanonicalJointCount; ++j) {
+    placed[size_t(j)] = mapping.source_joint[size_t(j)] == mapping.source_joint[size_t(cparents[size_t(j)])];
+  }
+  // Placed joints come in chains (spine1..spine3 on the pelvis's joint); place each chain evenly between
+  // its mapped ancestor and its first mapped descendant along first children.
+  for (int j = 1; j < kCanonicalJointCount; ++j) {
+    if (!placed[size_t(j)] || placed[size_t(cparents[size_t(j)])]) continue;  // chain starts only
+    const int anchor = cparents[size_t(j)];
+    std::vector<int> chain = {j};
+    int next = first_child(j);
+    while (next >= 0 && placed[size_t(next)]) chain.push_back(next), next = first_child(next);
+    const Eigen::Vector3f a = rest_joints.row(anchor).transpose();
+    if (next >= 0) {
+      const Eigen::Vector3f d = rest_joints.row(next).transpose();
+      for (size_t k = 0; k < chain.size(); ++k) {
+        const float s = float(k + 1) / float(chain.size() + 1);
+        rest_joints.row(chain[k]) = (a + s * (d - a)).transpose();
+      }
+    } else {
+      // A leaf chain (the foot on its ankle): continue the canonical bones, scaled like the parent bone.
+      const int grand = cparents[size_t(anchor)];
+      float scale = 1.0f;
+      if (grand >= 0) {
+        const float here = (rest_joints.row(anchor) - rest_joints.row(grand)).norm();
+        const float there = (reference.row(anchor) - reference.row(grand)).norm();
+        if (there > 1e-6f && here > 1e-6f) scale = here / there;
+      }
+      Eigen::Vector3f p = a;
+      int previous = anchor;
+      for (int c : chain) {
+        p += scale * (reference.row(c) - reference.row(previous)).transpose();
+        rest_joints.row(c) = p.transpose();
+        previous = c;
+      }
+    }
+  }
+  std::vector<int> out;
+  for (int j = 0; j < kCanonicalJointCount; ++j) {
+    if (placed[size_t(j)]) out.push_back(j);
+  }
+  return out;
+}
+
+CanonicalRest canonical_rest(const Skeleton& file, const std::optional<JointMapFile>& user_map,
+                             const std::string& source) {
+  CanonicalRest out;
+  std::vector<int> parents(file.parents.begin(), file.parents.end());
+  try {
+    out.mapping = map_to_canonical(file.names, parents, user_map, source);
+  } catch (const Error& e) {
+    std::string message = e.what();
+    if (message.find("--joint-map") != std::string::npos &&
+        message.find("--character-joint-map") == std::string::npos) {
+      message += " (for a character: --character-joint-map FILE)";
+    }
+    throw Error(message);
+  }
+  out.skeleton = canonical_skeleton();
+  for (int j = 0; j < kCanonicalJointCount; ++j) {
+    out.skeleton.rest_joints.row(j) = file.rest_joints.row(out.mapping.source_joint[size_t(j)]);
+  }
+  out.placed = place_missing_joints(out.skeleton.rest_joints, out.mapping);
+  std::vector<bool> placed(kCanonicalJointCount, false);
+  for (int j : out.placed) placed[size_t(j)] = true;
+  // Carriers of the file joints: the deepest canonical joint mapped to it, else the nearest mapped ancestor's.
+  const int M = file.num_joints();
+  std::vector<int> own(size_t(M), -1);
+  for (int j = 0; j < kCanonicalJointCount; ++j) {
+    if (!placed[size_t(j)]) own[size_t(out.mapping.source_joint[size_t(j)])] = j;
+  }
+  out.carrier.assign(size_t(M), 0);
+  for (int i = 0; i < M; ++i) {
+    int k = i, steps = 0;
+    while (k >= 0 && own[size_t(k)] < 0 && steps++ <= M) k = file.parents[size_t(k)];
+    out.carrier[size_t(i)] = k >= 0 && own[size_t(k)] >= 0 ? own[size_t(k)] : 0;
+    if (own[size_t(i)] < 0) out.extra.push_back(file.names[size_t(i)]);
+  }
+  return out;
+}
+
+std::string CanonicalRest::describe(const std::vector<std::string>& file_names) const {
+  std::ostringstream s;
+  const auto& names = canonical_joint_names();
+  s << "joint mapping (" << (mapping.convention.empty() ? "user map" : mapping.convention) << "):";
+  for (int j = 0; j < kCanonicalJointCount; ++j) {
+    const bool is_placed = std::find(placed.begin(), placed.end(), j) != placed.end();
+    s << (j % 4 == 0 ? "\n  " : ", ") << names[size_t(j)] << " <- ";
+    if (is_placed) {
+      s << "(placed)";
+    } else {
+      s << file_names[size_t(mapping.source_joint[size_t(j)])] << " [" << kind_name(mapping.kind[size_t(j)]) << "]";
+    }
+  }
+  if (!placed.empty()) {
+    s << "\n  placed between mapped neighbours:";
+    for (int j : placed) s << " " << names[size_t(j)];
+  }
+  if (!extra.empty()) {
+    s << "\n  " << extra.size() << " extra joints carried by their mapped parents:";
+    for (size_t k = 0; k < extra.size() && k < 12; ++k) s << " " << extra[k];
+    if (extra.size() > 12) s << " ...";
+  }
+  return s.str();
+}
+
+// === Loading
+
+std::optional<std::pair<std::string, std::string>> split_dataset_spec(const std::string& spec) {
+  const size_t colon = spec.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 >= spec.size()) return std::nullopt;
+  const std::string file = spec.substr(0, colon);
+  const std::string e = lower_extension(file);
+  if (e != ".h5" && e != ".hdf5") return std::nullopt;
+  return std::make_pair(file, spec.substr(colon + 1));
+}
+
+RuntimeCharacter load_character(const CharacterSpec& spec) {
+  RuntimeCharacter c;
+  std::optional<JointMapFile> user_map;
+  if (!spec.joint_map.empty()) user_map = read_joint_map(spec.joint_map);
+  const std::string& path = spec.spec;
+
+  if (path.rfind("generated:", 0) == 0) {
+    // "generated:SEED[:VERTICES]": the dataset builder's dressed stylized character.
+    unsigned long long seed = 0;
+    int vertices = 8000;
+    char tail = 0;
+    const int got = std::sscanf(path.c_str() + 10, "%llu:%d%c", &seed, &vertices, &tail);
+    AMT_CHECK(got == 1 || got == 2, path, ": character: expected generated:SEED or generated:SEED:VERTICES");
+    AMT_CHECK(vertices >= 2000 && vertices <= 200000, path, ": character: expected 2000 to 200000 vertices, found ",
+              vertices);
+    const GeneratedBody body = generate_body(sample_body_params(uint64_t(seed)), int(vertices * 0.7));
+    const DressedCharacter dressed = dress_character(body, uint64_t(seed));
+    c.name = "generated_" + std::to_string(seed);
+    c.mesh = dressed.mesh;
+    c.file_skeleton = body.skeleton;
+    c.rest = canonical_rest(c.file_skeleton, user_map, path);
+    c.skeleton = c.rest.skeleton;
+    return c;
+  }
+  if (const auto ds = split_dataset_spec(path)) {
+    DatasetReader reader(ds->first);
+    AMT_CHECK(reader.has_character(ds->second), ds->first, ": /characters/", ds->second,
+              ": expected a character of the dataset, found none (it has ", reader.character_names().size(),
+              " characters", reader.character_names().empty() ? "" : ", e.g. " + reader.character_names()[0], ")");
+    CharacterData data = reader.read_character(ds->second);
+    c.name = data.name;
+    c.mesh = std::move(data.mesh);
+    c.file_skeleton = data.skeleton;
+    c.apparel_mask = std::move(data.apparel_mask);
+    c.dataset = ds->first;
+    c.dataset_character = ds->second;
+  } else {
+    AMT_CHECK(std::filesystem::exists(path), path, ": character: expected a file, found none");
+    c.name = std::filesystem::path(path).stem().string();
+    const std::string e = lower_extension(path);
+    bool has_skeleton = true;
+    if (e == ".glb" || e == ".gltf") {
+      const GltfAsset asset = read_gltf(path);
+      try {
+        GltfCharacter g = gltf_character(asset);
+        c.mesh = std::move(g.mesh);
+        c.file_skeleton = std::move(g.skeleton);
+      } catch (const Error&) {
+        // No skinned mesh: an unrigged glTF needs a joints file; take the displayed mesh.
+        if (spec.joints.empty()) throw;
+        const GltfVertexAnimation still = gltf_vertex_animation(asset, "", 30.0f);
+        c.mesh.V = still.frames.at(0);
+        c.mesh.F = still.faces;
+        has_skeleton = false;
+      }
+    } else if (e == ".obj") {
+      c.mesh = read_obj(path);
+      has_skeleton = false;
+      if (spec.joints.empty()) {
+        const std::string sidecar = joints_sidecar_path(path);
+        AMT_CHECK(std::filesystem::exists(sidecar), path, ": joints: the character has no skeleton: expected ", sidecar,
+                  " beside it or --character-joints FILE");
+        c.file_skeleton = read_joints_json(sidecar);
+        has_skeleton = true;
+      }
+    } else if (e == ".pmx") {
+      const PmxModel model = pmx_to_amt_frame(read_pmx(path), kPmxMetresPerUnit);
+      c.mesh = pmx_mesh(model);
+      Skeleton& s = c.file_skeleton;
+      s.rest_joints.resize(Eigen::Index(model.bones.size()), 3);
+      for (size_t b = 0; b < model.bones.size(); ++b) {
+        s.names.push_back(model.bones[b].name.empty() ? model.bones[b].name_english : model.bones[b].name);
+        s.parents.push_back(model.bones[b].parent);
+        s.rest_joints.row(Eigen::Index(b)) = model.bones[b].position.transpose();
+      }
+      // Names must be unique for mapping; PMX allows repeats.
+      for (size_t b = 0; b < s.names.size(); ++b) {
+        for (size_t k = 0; k < b; ++k) {
+          if (s.names[k] == s.names[b]) {
+            s.names[b] += "_" + std::to_string(b);
+            break;
+          }
+        }
+      }
+      AMT_CHECK(!model.bones.empty() || !spec.joints.empty(), path,
+                ": joints: the character has no skeleton (no bones): expected --character-joints FILE");
+      has_skeleton = !model.bones.empty();
+    } else {
+      fail(path, ": character: expected a .glb, .gltf, .obj, .pmx file or file.h5:character, found extension '", e,
+           "'");
+    }
+    if (!spec.joints.empty()) {
+      c.file_skeleton = read_joints_json(spec.joints);
+      has_skeleton = true;
+    }
+    AMT_CHECK(has_skeleton, path, ": joints: the character has no skeleton: expected --character-joints FILE");
+  }
+  validate_mesh(c.mesh, path);
+  AMT_CHECK(c.file_skeleton.num_joints() > 0, path,
+            ": joints: the character has no skeleton: expected a rigged file or --character-joints FILE");
+  c.rest = canonical_rest(c.file_skeleton, user_map, path);
+  c.skeleton = c.rest.skeleton;
+  return c;
+}
+
+std::vector<uint8_t> read_apparel_mask(const std::string& path, int num_vertices) {
+  std::ifstream in(path);
+  AMT_CHECK(in.good(), path, ": apparel mask: expected a readable file, found none");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string s = text.str();
+  std::vector<double> values;
+  const size_t first = s.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && s[first] == '[') {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(s);
+    } catch (const std::exception& e) {
+      fail(path, ": apparel mask: expected a JSON array of 0/1, found invalid JSON (", e.what(), ")");
+    }
+    for (const auto& v : j) {
+      if (v.is_boolean()) {
+        values.push_back(v.get<bool>() ? 1.0 : 0.0);
+      } else {
+        AMT_CHECK(v.is_number(), path, ": apparel mask: expected numbers 0 or 1, found ", v.dump());
+        values.push_back(v.get<double>());
+      }
+    }
+  } else {
+    std::istringstream words(s);
+    std::string w;
+    while (words >> w) {
+      char* end = nullptr;
+      const double v = std::strtod(w.c_str(), &end);
+      AMT_CHECK(end && *end == '\0', path, ": apparel mask: value ", values.size(), ": expected 0 or 1, found '", w,
+                "'");
+      values.push_back(v);
+    }
+  }
+  AMT_CHECK(int(values.size()) == num_vertices, path, ": apparel mask: expected ", num_vertices,
+            " values (one per character vertex), found ", values.size());
+  std::vector<uint8_t> mask(values.size());
+  for (size_t i = 0; i < values.size(); ++i) {
+    AMT_CHECK(values[i] == 0.0 || values[i] == 1.0, path, ": apparel mask: value ", i, ": expected 0 or 1, found ",
+              values[i]);
+    mask[i] = uint8_t(values[i]);
+  }
+  return mask;
+}
+
+}  // namespace amt

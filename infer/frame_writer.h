@@ -1,0 +1,60 @@
+#pragma once
+// The runtime's outputs, written frame by frame so that memory stays flat however long the motion:
+//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/gltf_export.h)
+//   .h5    the dataset format (data_tools/dataset_file.h): the character (rest mesh, canonical skeleton,
+//          the apparel mask in use, skinning weights) and one clip whose `vertices` are the predictions,
+//          so that `amt eval --predictions` can score it against the ground truth of the same names
+//   other  a folder of OBJ files frame_0000.obj, ... (data_tools/obj_io.h)
+// Nothing half-written: each output is built under a temporary name ("<out>.tmp", a folder for OBJ)
+// and renamed onto the output by finish(); a writer destroyed before finish() removes it.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "data_tools/mesh.h"
+#include "data_tools/skeleton.h"
+#include "data_tools/types.h"
+
+namespace amt {
+
+/// What an output needs to know besides the frames.
+///   character   name, rest mesh, canonical skeleton
+///   apparel_mask  #V 0/1 in use; weights #V by J rows summing to 1 (for .h5)
+///   clip, motion  names of the clip and of its source motion (for .h5)
+///   frames      the number of frames that will be appended (OBJ file name digits); fps their rate
+struct OutputInfo {
+  std::string character = "character";
+  TriMesh mesh;
+  Skeleton skeleton;
+  std::vector<uint8_t> apparel_mask;
+  MatrixXfR weights;
+  std::string clip = "clip", motion = "motion";
+  int frames = 0;
+  float fps = 30.0f;
+};
+
+/// An output being written.
+class FrameWriter {
+ public:
+  virtual ~FrameWriter() = default;
+  /// Appends frame V (#V by 3, metres) with its joint transforms T^(t) (J transforms).
+  virtual void append(const MatrixX3f& V, const Transforms& joint_transforms) = 0;
+  /// Completes the output and renames it into place. Returns a description ("out/demo.glb, 12.3 MB").
+  virtual std::string finish() = 0;
+  /// Frames appended so far.
+  virtual int num_frames() const = 0;
+};
+
+/// "glb", "h5" or "obj" for an output path (by extension: .glb, .h5/.hdf5, else an OBJ folder).
+/// Throws amt::Error for .gltf (use .glb) and for .obj (name a folder for the OBJ sequence).
+std::string output_kind(const std::string& path);
+
+/// Checks that `path` can be written before any work: creates its parent folder and a probe file
+/// "<path>.tmp" (removed again). Throws amt::Error naming the path when either fails.
+void check_output_writable(const std::string& path);
+
+/// Opens the writer of `path` (output_kind). Checks that the output can be written before any frame
+/// is computed: throws amt::Error naming the path when its folder cannot be created or written.
+std::unique_ptr<FrameWriter> open_frame_writer(const std::string& path, const OutputInfo& info);
+
+}  // namespace amt

@@ -1,0 +1,154 @@
+#include "infer/penetration_resolution.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "data_tools/error.h"
+#include "data_tools/winding_number.h"
+
+namespace amt {
+
+PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask,
+                                         PenetrationOptions options)
+    : options_(options) {
+  AMT_CHECK(options.margin >= 0 && std::isfinite(options.margin), "penetration: margin: expected >= 0, found ",
+            options.margin);
+  AMT_CHECK(options.smoothing_rings >= 0, "penetration: smoothing rings: expected >= 0, found ",
+            options.smoothing_rings);
+  const int N = int(apparel_mask.size());
+  std::vector<int32_t> position(size_t(N), -1);
+  for (int i = 0; i < N; ++i) {
+    std::vector<int32_t>& part = apparel_mask[size_t(i)] ? apparel_ : body_;
+    position[size_t(i)] = int32_t(part.size());
+    part.push_back(i);
+  }
+  std::vector<Eigen::Vector3i> faces;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    bool body = true;
+    for (int k = 0; k < 3; ++k) {
+      AMT_CHECK(F(f, k) >= 0 && F(f, k) < N, "penetration: faces: expected indices in [0, ", N, "), found ", F(f, k));
+      body = body && !apparel_mask[size_t(F(f, k))];
+    }
+    if (body) faces.emplace_back(position[size_t(F(f, 0))], position[size_t(F(f, 1))], position[size_t(F(f, 2))]);
+  }
+  body_faces_.resize(Eigen::Index(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) body_faces_.row(Eigen::Index(f)) = faces[f].transpose();
+  // Apparel graph: mesh edges with both ends apparel, numbered by apparel position.
+  const MatrixX2i E = unique_edges(F);
+  std::vector<Eigen::Vector2i> inner;
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    if (apparel_mask[size_t(E(e, 0))] && apparel_mask[size_t(E(e, 1))]) {
+      inner.emplace_back(position[size_t(E(e, 0))], position[size_t(E(e, 1))]);
+    }
+  }
+  MatrixX2i Ea(Eigen::Index(inner.size()), 2);
+  for (size_t e = 0; e < inner.size(); ++e) Ea.row(Eigen::Index(e)) = inner[e].transpose();
+  apparel_adjacency_ = vertex_adjacency(int(apparel_.size()), Ea);
+}
+
+const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
+  body_scratch_.resize(Eigen::Index(body_.size()), 3);
+  for (size_t k = 0; k < body_.size(); ++k) body_scratch_.row(Eigen::Index(k)) = V.row(body_[k]);
+  if (tree_) {
+    tree_->refit(body_scratch_);
+  } else {
+    tree_ = std::make_unique<WindingNumberTree>(body_scratch_, body_faces_);
+  }
+  return *tree_;
+}
+
+Penetration PenetrationResolver::measure(const MatrixX3f& V) {
+  Penetration p;
+  p.total = int(apparel_.size());
+  if (apparel_.empty() || body_faces_.rows() == 0) return p;
+  AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
+            apparel_.size() + body_.size(), " vertices, found ", V.rows());
+  const WindingNumberTree& tree = posed_body(V);
+  MatrixX3f A(Eigen::Index(apparel_.size()), 3);
+  for (size_t k = 0; k < apparel_.size(); ++k) A.row(Eigen::Index(k)) = V.row(apparel_[k]);
+  return penetration(A, tree);
+}
+
+PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
+  PenetrationReport report;
+  const int Na = int(apparel_.size());
+  report.before.total = report.after.total = Na;
+  if (Na == 0 || body_faces_.rows() == 0) return report;
+  AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
+            apparel_.size() + body_.size(), " vertices, found ", V.rows());
+  const WindingNumberTree& tree = posed_body(V);
+  // Push: every inside vertex to its closest body point plus the margin along the way out.
+  std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
+  std::vector<float> depth(size_t(Na), 0.0f);
+  std::vector<uint8_t> inside(size_t(Na), 0);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (int k = 0; k < Na; ++k) {
+    const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+    if (!tree.inside(p)) continue;
+    Eigen::Vector3f closest;
+    const float d = tree.distance(p, &closest);
+    inside[size_t(k)] = 1;
+    depth[size_t(k)] = d;
+    if (d > 1e-9f) {
+      push[size_t(k)] = (closest - p) * ((d + options_.margin) / d);
+    }
+  }
+  for (int k = 0; k < Na; ++k) {
+    if (!inside[size_t(k)]) continue;
+    ++report.before.inside;
+    report.before.depth_sum_cm += 100.0 * double(depth[size_t(k)]);
+    ++report.pushed;
+  }
+  if (report.pushed == 0) {
+    report.after = report.before;
+    return report;
+  }
+  // Spread: ring r around the pushed vertices takes falloff^r of the mean push of its pushed-or-spread
+  // neighbours of the previous rings (pushed vertices keep their full push).
+  std::vector<int> ring(size_t(Na), -1);
+  std::vector<int> frontier;
+  for (int k = 0; k < Na; ++k) {
+    if (inside[size_t(k)]) ring[size_t(k)] = 0, frontier.push_back(k);
+  }
+  for (int r = 1; r <= options_.smoothing_rings && !frontier.empty(); ++r) {
+    std::vector<int> next;
+    for (int k : frontier) {
+      for (int n = apparel_adjacency_.offsets[size_t(k)]; n < apparel_adjacency_.offsets[size_t(k) + 1]; ++n) {
+        const int m = apparel_adjacency_.neighbors[size_t(n)];
+        if (ring[size_t(m)] < 0) ring[size_t(m)] = r, next.push_back(m);
+      }
+    }
+    std::sort(next.begin(), next.end());
+    for (int m : next) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      int count = 0;
+      for (int n = apparel_adjacency_.offsets[size_t(m)]; n < apparel_adjacency_.offsets[size_t(m) + 1]; ++n) {
+        const int q = apparel_adjacency_.neighbors[size_t(n)];
+        if (ring[size_t(q)] >= 0 && ring[size_t(q)] < r) sum += push[size_t(q)], ++count;
+      }
+      if (count > 0) push[size_t(m)] = options_.falloff * sum / float(count);
+    }
+    report.smoothed += int(next.size());
+    frontier = std::move(next);
+  }
+  // Apply, then re-test the moved vertices (the others keep their verdict: outside).
+  std::vector<int> moved;
+  for (int k = 0; k < Na; ++k) {
+    if (ring[size_t(k)] >= 0) {
+      V.row(apparel_[size_t(k)]) += push[size_t(k)].transpose();
+      moved.push_back(k);
+    }
+  }
+  std::vector<float> still(moved.size(), -1.0f);
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int m = 0; m < int(moved.size()); ++m) {
+    const Eigen::Vector3f p = V.row(apparel_[size_t(moved[size_t(m)])]).transpose();
+    if (tree.inside(p)) still[size_t(m)] = tree.distance(p);
+  }
+  for (float d : still) {
+    if (d >= 0) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(d);
+  }
+  return report;
+}
+
+}  // namespace amt

@@ -1,0 +1,80 @@
+#pragma once
+// Penetration resolution, the runtime's post-process (issue 6, item 5): apparel vertices found inside
+// the body are pushed out along the body surface normal by their depth plus a small margin, as in
+// the cloth-retargeting paper (papers/cloth_motion_retargeting.md, section 3.2: "moving the
+// penetrating cloth vertices in the direction of the normal vectors ... by the extent of the
+// penetrations"); the push is then spread to the untouched apparel neighbours with a decaying
+// weight, so that a pushed vertex does not become a spike in its garment.
+//
+// Inside test: the generalized winding number (data_tools/winding_number.h) against the closed body
+// part, the faces whose three vertices are body vertices, posed as in the frame. The direction out
+// is from the vertex to its closest body point: for a closest point inside a triangle this is the
+// triangle's normal, and it stays correct at edges and corners where face normals disagree.
+//
+// Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
+// refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
+// rebuilt: the body's faces do not change between frames, only its positions.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "data_tools/mesh.h"
+#include "data_tools/metrics.h"
+#include "data_tools/types.h"
+#include "data_tools/winding_number.h"
+
+namespace amt {
+
+/// Choices of the resolution.
+///   margin          distance outside the body surface a pushed vertex ends at, metres
+///   smoothing_rings rings of apparel neighbours around a pushed vertex that follow it, each ring
+///                   with `falloff` times the previous ring's share of the push (0: no smoothing)
+struct PenetrationOptions {
+  float margin = 0.003f;
+  int smoothing_rings = 2;
+  float falloff = 0.5f;
+};
+
+/// What a frame's resolution did.
+///   before, after   apparel vertices inside the body before and after (data_tools/metrics.h)
+///   pushed          vertices moved out of the body; smoothed: neighbours moved with them
+struct PenetrationReport {
+  Penetration before, after;
+  int pushed = 0, smoothed = 0;
+};
+
+/// Resolves the penetration of a character's apparel into its body, frame after frame. Built once per
+/// character from its faces and apparel mask; resolve() is then called with each posed frame. It keeps
+/// the body's winding-number tree between calls (refitted to each frame), so one resolver serves one
+/// frame at a time: do not call measure() or resolve() of the same resolver from two threads at once.
+class PenetrationResolver {
+ public:
+  /// F #F by 3 faces; apparel_mask #V entries (1 = apparel). A character without apparel or without
+  /// a closed body part (no face with three body vertices) is accepted: resolve() then does nothing.
+  PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask, PenetrationOptions options = {});
+
+  /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
+  Penetration measure(const MatrixX3f& V);
+
+  /// Pushes the penetrating apparel vertices of V (#V by 3, metres) out, in place, and reports the
+  /// penetration before and after. Deterministic; the queries run on the OpenMP threads.
+  PenetrationReport resolve(MatrixX3f& V);
+
+  /// Apparel and body vertex counts; faces of the closed body part.
+  int num_apparel() const { return int(apparel_.size()); }
+  int num_body() const { return int(body_.size()); }
+  int num_body_faces() const { return int(body_faces_.rows()); }
+
+ private:
+  // The tree over the closed body part posed as in V: built on the first call, refitted after.
+  const WindingNumberTree& posed_body(const MatrixX3f& V);
+
+  PenetrationOptions options_;
+  std::vector<int32_t> apparel_, body_;  // vertex ids of each part, ascending
+  MatrixX3i body_faces_;                 // faces with three body vertices, renumbered into body_
+  Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
+  std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
+  MatrixX3f body_scratch_;               // body positions of the last call
+};
+
+}  // namespace amt

@@ -1,0 +1,241 @@
+#include "infer/runtime_torch.h"
+
+#include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "data_tools/error.h"
+
+namespace amt {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::vector<uint8_t> mask_vector(const at::Tensor& mask) {
+  const at::Tensor m = mask.to(at::kByte).contiguous();
+  return std::vector<uint8_t>(m.data_ptr<uint8_t>(), m.data_ptr<uint8_t>() + m.numel());
+}
+
+}  // namespace
+
+// === Per-frame session
+
+at::Tensor transforms_tensor(const Transforms& transforms) {
+  at::Tensor t = at::empty({int64_t(transforms.size()), 3, 4}, at::kFloat);
+  float* p = t.data_ptr<float>();
+  for (size_t j = 0; j < transforms.size(); ++j) std::memcpy(p + 12 * j, transforms[j].data(), 12 * sizeof(float));
+  return t;
+}
+
+RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
+                               PenetrationOptions penetration)
+    : bundle_(bundle),
+      bound_(std::move(bound)),
+      mask_(mask_vector(bound_.apparel_mask)),
+      resolver_(F, mask_, penetration),
+      resolve_(resolve) {
+  stepper_ = std::make_unique<PipelineStepper>(bundle_, bound_, rest_apparel_history(bound_), PipelineStages::kFull);
+}
+
+void RuntimeSession::advance(const at::Tensor& joint_transforms) {
+  stepper_->step(joint_transforms);
+}
+
+FrameTimes RuntimeSession::step(const Transforms& joint_transforms, MatrixX3f& V, PenetrationReport* report) {
+  FrameTimes times;
+  auto start = Clock::now();
+  {
+    const at::Tensor V_hat = stepper_->step(transforms_tensor(joint_transforms), &times.stages);
+    c10::InferenceMode inference;
+    const at::Tensor c = V_hat.contiguous();
+    V.resize(c.size(0), 3);
+    std::memcpy(V.data(), c.data_ptr<float>(), size_t(c.numel()) * sizeof(float));
+  }
+  times.model = seconds_since(start);
+  start = Clock::now();
+  if (resolve_) {
+    const PenetrationReport r = resolver_.resolve(V);
+    if (report) *report = r;
+  } else if (report) {
+    report->before = report->after = resolver_.measure(V);
+    report->pushed = report->smoothed = 0;
+  }
+  times.penetration = seconds_since(start);
+  return times;
+}
+
+MatrixXfR output_weights(const BoundCharacter& bound) {
+  c10::InferenceMode inference;
+  const int64_t N = bound.num_vertices(), J = bound.joints.size(0);
+  MatrixXfR W = MatrixXfR::Zero(N, J);
+  const at::Tensor body_ids = bound.body_ids.contiguous();
+  const at::Tensor bw = bound.body_weights.to(at::kFloat).contiguous();
+  for (int64_t k = 0; k < body_ids.numel(); ++k) {
+    std::memcpy(W.row(body_ids.data_ptr<int64_t>()[k]).data(), bw.data_ptr<float>() + k * J, size_t(J) * sizeof(float));
+  }
+  const at::Tensor apparel_ids = bound.apparel_ids.contiguous();
+  if (apparel_ids.numel() > 0) {
+    const at::Tensor nearest = at::cdist(bound.V.index_select(0, apparel_ids), bound.joints).argmin(1).contiguous();
+    for (int64_t k = 0; k < apparel_ids.numel(); ++k) {
+      W(apparel_ids.data_ptr<int64_t>()[k], nearest.data_ptr<int64_t>()[k]) = 1.0f;
+    }
+  }
+  return W;
+}
+
+// === The job
+
+std::string default_bind_path(const std::string& out) {
+  std::filesystem::path p(out);
+  if (p.filename().empty()) p = p.parent_path();  // "folder/" -> "folder"
+  return output_kind(out) == "obj" ? p.string() + ".bind" : p.replace_extension(".bind").string();
+}
+
+AnimateSummary animate(const AnimateOptions& o) {
+  const auto job_start = Clock::now();
+  AnimateSummary s;
+  s.output = o.out;
+  output_kind(o.out);  // rejects .gltf / .obj names before any work
+
+  // Inputs and model.
+  const RuntimeCharacter character = load_character(o.character);
+  const SourceMotion source = load_motion(o.motion);
+  const ModelBundle bundle = load_model_bundle(o.model_dir);
+  check_bundle_skeleton(bundle, character.skeleton.names, o.model_dir);
+  std::vector<uint8_t> mask_override;
+  if (!o.apparel_mask.empty()) mask_override = read_apparel_mask(o.apparel_mask, character.mesh.num_vertices());
+  const MotionPlayer player(source, character, o.playback);
+  if (o.verbose) {
+    std::cerr << "animate: character " << character.name << " (" << character.mesh.num_vertices() << " vertices, "
+              << character.file_skeleton.num_joints() << " joints)\n";
+    if (!character.dataset.empty()) {
+      std::cerr << "animate: character skeleton is the dataset's canonical skeleton\n";
+    } else {
+      std::cerr << "animate: character " << character.rest.describe(character.file_skeleton.names) << "\n";
+    }
+    std::cerr << "animate: motion " << source.name << " (" << source.motion.num_frames() << " frames at "
+              << source.motion.fps << " fps)\n";
+    if (!source.mapping.empty()) std::cerr << "animate: motion " << source.mapping << "\n";
+  }
+  s.load_seconds = seconds_since(job_start);
+
+  // An unwritable output fails before the work.
+  check_output_writable(o.out);
+  s.bind_path = o.bind_path.empty() ? default_bind_path(o.out) : (o.bind_path == "none" ? "" : o.bind_path);
+  const BindResult bind =
+      bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path);
+  s.bind_seconds = bind.seconds;
+  s.bind_cache_hit = bind.cache_hit;
+  if (o.verbose) {
+    std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
+              << " in " << bind.seconds << " s\n";
+  }
+  RuntimeSession session(bundle, bind.bound, character.mesh.F, o.resolve_penetration, o.penetration);
+  s.vertices = character.mesh.num_vertices();
+  s.apparel_vertices = int(session.bound().num_apparel());
+  s.frames = player.num_frames();
+  s.fps = player.fps();
+  s.exact_motion = player.exact();
+
+  OutputInfo info;
+  info.character = character.name;
+  info.mesh = character.mesh;
+  info.skeleton = character.skeleton;
+  info.apparel_mask = session.apparel_mask();
+  info.weights = output_weights(session.bound());
+  info.clip = source.dataset_clip.empty() ? source.name : source.dataset_clip;
+  info.motion = source.name;
+  info.frames = s.frames;
+  info.fps = s.fps;
+  std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+
+  // Lead-in from the rest pose, then the motion.
+  const Transforms first = player.frame(0);
+  s.lead_in = std::max(0, o.playback.lead_in);
+  {
+    const at::Tensor rest_joints = session.bound().joints;
+    const at::Tensor lead = motion_lead_in(transforms_tensor(first), rest_joints, s.lead_in);
+    for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
+  }
+  std::vector<float> frame_seconds;
+  frame_seconds.reserve(size_t(s.frames));
+  MatrixX3f V;
+  auto last_print = Clock::now();
+  const auto loop_start = Clock::now();
+  for (int t = 0; t < s.frames; ++t) {
+    const Transforms T = t == 0 ? first : player.frame(t);
+    PenetrationReport report;
+    FrameTimes times = session.step(T, V, &report);
+    const auto out_start = Clock::now();
+    writer->append(V, T);
+    times.output = seconds_since(out_start);
+    frame_seconds.push_back(float(times.total()));
+    s.mean.model += times.model, s.mean.penetration += times.penetration, s.mean.output += times.output;
+    s.before.inside += report.before.inside, s.before.total += report.before.total;
+    s.before.depth_sum_cm += report.before.depth_sum_cm;
+    s.after.inside += report.after.inside, s.after.total += report.after.total;
+    s.after.depth_sum_cm += report.after.depth_sum_cm;
+    if (o.verbose && (seconds_since(last_print) > 1.0 || t + 1 == s.frames)) {
+      last_print = Clock::now();
+      const double elapsed = seconds_since(loop_start), rate = (t + 1) / std::max(elapsed, 1e-9);
+      std::fprintf(stderr, "\ranimate: %d/%d frames, %.1f frames/s, ETA %.0f s   ", t + 1, s.frames, rate,
+                   (s.frames - t - 1) / rate);
+      if (t + 1 == s.frames) std::fprintf(stderr, "\n");
+    }
+  }
+  const std::string written = writer->finish();
+  s.output = written;
+  const double n = std::max(1, s.frames);
+  s.mean.model /= n, s.mean.penetration /= n, s.mean.output /= n;
+  std::sort(frame_seconds.begin(), frame_seconds.end());
+  s.frame_median = frame_seconds[frame_seconds.size() / 2];
+  s.frame_p95 = frame_seconds[std::min(frame_seconds.size() - 1, size_t(std::ceil(0.95 * frame_seconds.size())) - 1)];
+  s.total_seconds = seconds_since(job_start);
+  return s;
+}
+
+std::string describe(const AnimateSummary& s) {
+  std::ostringstream out;
+  char line[256];
+  out << "wrote " << s.output << "\n";
+  std::snprintf(line, sizeof(line),
+                "frames: %d at %.4g fps (%.2f s of motion, after %d lead-in frames from the rest pose)%s\n", s.frames,
+                s.fps, s.frames / s.fps, s.lead_in, s.exact_motion ? ", dataset transforms as stored" : "");
+  out << line;
+  std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%)\n", s.vertices, s.apparel_vertices,
+                100.0 * s.apparel_vertices / std::max(1, s.vertices));
+  out << line;
+  std::snprintf(line, sizeof(line), "bind: %.2f s (%s%s)\n", s.bind_seconds,
+                s.bind_cache_hit      ? "cache hit: "
+                : s.bind_path.empty() ? "no cache"
+                                      : "computed, cached in ",
+                s.bind_path.c_str());
+  out << line;
+  std::snprintf(line, sizeof(line),
+                "time per frame: median %.2f ms, p95 %.2f ms (model %.2f, penetration %.2f, output %.2f ms mean)\n",
+                1e3 * s.frame_median, 1e3 * s.frame_p95, 1e3 * s.mean.model, 1e3 * s.mean.penetration,
+                1e3 * s.mean.output);
+  out << line;
+  std::snprintf(line, sizeof(line),
+                "penetration share: %.2f %% of apparel vertices before, %.2f %% after (mean depth %.2f cm before)\n",
+                100.0 * s.before.share(), 100.0 * s.after.share(), s.before.mean_depth_cm());
+  out << line;
+  std::snprintf(line, sizeof(line), "total: %.1f s\n", s.total_seconds);
+  out << line;
+  return out.str();
+}
+
+}  // namespace amt

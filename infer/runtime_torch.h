@@ -1,0 +1,119 @@
+#pragma once
+// The CPU runtime (issue 6): bind once, then stream. `animate` reads a character and a motion, binds
+// the character to the model (through the bind cache), blends the motion in from the rest pose, runs
+// the one forward path of train/pipeline.h frame by frame (LBS, apparel step, refiner, under
+// c10::InferenceMode), resolves penetration and streams each frame to the output writer.
+// RuntimeSession is the per-frame part alone, for `amt bench --suite runtime` and the tests.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "data_tools/metrics.h"
+#include "infer/bind_cache_torch.h"
+#include "infer/character_input.h"
+#include "infer/frame_writer.h"
+#include "infer/motion_input.h"
+#include "infer/penetration_resolution.h"
+#include "train/pipeline.h"
+
+namespace amt {
+
+// === Per-frame session
+
+/// Wall time of the stages of one frame, seconds.
+///   model        the pipeline step (LBS + apparel step + refiner) and the copy of V̂ out, inference mode
+///   stages       the split of the pipeline step (train/pipeline.h StepTimes: LBS, apparel, refiner)
+///   penetration  the resolution (0 when switched off); output: the writer's append
+struct FrameTimes {
+  double model = 0, penetration = 0, output = 0;
+  StepTimes stages;
+  double total() const { return model + penetration + output; }
+};
+
+/// One bound character running frame by frame: the pipeline stepper (history from the skinned rest
+/// pose), the penetration resolver and a frame buffer. The bundle must outlive the session.
+class RuntimeSession {
+ public:
+  /// Starts from rest_apparel_history. `resolve` switches penetration resolution on.
+  RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
+                 PenetrationOptions penetration = {});
+
+  /// Runs frame T^(t) (J transforms on the bundle's skeleton): V̂ into `V` (#V by 3), then the
+  /// penetration resolution when on. Returns the stage times (output excluded).
+  FrameTimes step(const Transforms& joint_transforms, MatrixX3f& V, PenetrationReport* report = nullptr);
+
+  /// Runs frame T^(t) without resolution or copy-out (lead-in frames).
+  void advance(const at::Tensor& joint_transforms);
+
+  const BoundCharacter& bound() const { return bound_; }
+  /// The apparel mask in use, #V entries 0/1.
+  const std::vector<uint8_t>& apparel_mask() const { return mask_; }
+  bool resolving() const { return resolve_; }
+
+ private:
+  const ModelBundle& bundle_;
+  BoundCharacter bound_;
+  std::vector<uint8_t> mask_;
+  std::unique_ptr<PipelineStepper> stepper_;
+  PenetrationResolver resolver_;
+  bool resolve_;
+};
+
+/// (J, 3, 4) float tensor of J transforms.
+at::Tensor transforms_tensor(const Transforms& transforms);
+
+/// Skinning weights of every vertex (#V by J) for outputs that store them: the bound body weights on
+/// body rows and, for apparel rows, weight 1 on the joint nearest to the rest vertex.
+MatrixXfR output_weights(const BoundCharacter& bound);
+
+// === The `amt animate` job
+
+/// Everything `amt animate` takes.
+///   model_dir   folder of the four checkpoints (train/pipeline.h load_model_bundle)
+///   out         .glb, .h5 or an OBJ folder (infer/frame_writer.h)
+///   bind_path   bind cache file; empty: "<out without extension>.bind" beside the output; "none" disables
+///   apparel_mask  a mask file overriding the segmenter (read_apparel_mask), or empty
+struct AnimateOptions {
+  CharacterSpec character;
+  MotionSpec motion;
+  std::string model_dir;
+  std::string out;
+  std::string bind_path;
+  std::string apparel_mask;
+  PlaybackOptions playback;
+  bool resolve_penetration = true;
+  PenetrationOptions penetration;
+  /// Print the mapping and a progress line (done/total, frames/s, ETA) on stderr.
+  bool verbose = true;
+};
+
+/// What a run did: counts, timings (seconds) and penetration over the written frames.
+struct AnimateSummary {
+  std::string output;
+  int frames = 0, lead_in = 0;
+  float fps = 30.0f;
+  int vertices = 0, apparel_vertices = 0;
+  std::string bind_path;
+  bool bind_cache_hit = false;
+  double bind_seconds = 0, load_seconds = 0, total_seconds = 0;
+  /// Per-frame wall time (model + penetration + output): median and 95th percentile.
+  double frame_median = 0, frame_p95 = 0;
+  /// Mean stage times per frame.
+  FrameTimes mean;
+  /// Apparel vertices inside the body, summed over frames, before and after resolution.
+  Penetration before, after;
+  bool exact_motion = false;
+};
+
+/// The default bind cache path of an output: "<out without extension>.bind" (for an OBJ folder,
+/// "<folder>.bind" beside it).
+std::string default_bind_path(const std::string& out);
+
+/// Runs the whole job. Throws amt::Error on bad input (before any output is created where it can be
+/// checked up front); the output is complete or absent.
+AnimateSummary animate(const AnimateOptions& options);
+
+/// The summary as a few lines of text (frames, time per frame, penetration share before and after).
+std::string describe(const AnimateSummary& summary);
+
+}  // namespace amt

@@ -1,0 +1,128 @@
+// Penetration resolution on a constructed case: a flat sheet (apparel) cut through a closed sphere
+// (body). Every sheet vertex inside the sphere must end outside it, at the surface plus the margin.
+#include "infer/penetration_resolution.h"
+
+#include <gtest/gtest.h>
+
+#include "data_tools/shapes.h"
+#include "data_tools/winding_number.h"
+
+namespace amt {
+namespace {
+
+struct SheetThroughSphere {
+  TriMesh mesh;
+  std::vector<uint8_t> mask;
+  int body_vertices = 0;
+};
+
+// Sphere of radius 0.3 at the origin (body), then a 21 x 21 sheet of 1.2 m in the plane z = 0.1
+// centred on the origin (apparel): the sheet's middle is inside the sphere.
+SheetThroughSphere sheet_through_sphere() {
+  SheetThroughSphere c;
+  const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 32, 16);
+  TriMesh sheet = grid(21, 21, 0.06f);
+  sheet.V.rowwise() += Eigen::RowVector3f(-0.6f, -0.6f, 0.1f);
+  c.mesh = merge_meshes({sphere, sheet});
+  c.body_vertices = sphere.num_vertices();
+  c.mask.assign(size_t(c.mesh.num_vertices()), 0);
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) c.mask[size_t(i)] = 1;
+  return c;
+}
+
+TEST(PenetrationResolver, PushesASheetOutOfASphere) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationOptions options;
+  options.margin = 0.005f;
+  PenetrationResolver resolver(c.mesh.F, c.mask, options);
+  EXPECT_EQ(resolver.num_apparel(), 441);
+  EXPECT_EQ(resolver.num_body_faces(), c.mesh.num_faces() - 800);
+  MatrixX3f V = c.mesh.V;
+  const Penetration before = resolver.measure(V);
+  // Sheet points with x^2 + y^2 < 0.3^2 - 0.1^2 = 0.08 are inside: on the 0.06 grid that is 69 points
+  // (counted by hand over |i|, |j| <= 4 with 0.0036 (i^2 + j^2) < 0.08, i.e. i^2 + j^2 <= 22).
+  EXPECT_EQ(before.inside, 69);
+  EXPECT_EQ(before.total, 441);
+  const PenetrationReport report = resolver.resolve(V);
+  EXPECT_EQ(report.before.inside, 69);
+  EXPECT_EQ(report.pushed, 69);
+  EXPECT_GT(report.smoothed, 0);
+  EXPECT_EQ(report.after.inside, 0);
+  EXPECT_EQ(resolver.measure(V).inside, 0);
+  // Pushed vertices sit at the sphere's surface plus the margin (the 32 x 16 polygonal sphere is within
+  // 6 mm of the round one); the body did not move; far sheet vertices did not move.
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) {
+    const float r0 = c.mesh.V.row(i).norm(), r1 = V.row(i).norm();
+    if (r0 < 0.3f - 0.003f) {
+      EXPECT_NEAR(r1, 0.3f + options.margin, 0.007f) << "vertex " << i;
+    }
+    if (r0 > 0.45f) {
+      EXPECT_EQ(V.row(i), c.mesh.V.row(i)) << "vertex " << i;
+    }
+  }
+  EXPECT_EQ(V.topRows(c.body_vertices), c.mesh.V.topRows(c.body_vertices));
+  // No spikes: no sheet edge grew beyond the push depth plus one grid spacing.
+  const MatrixX2i E = unique_edges(c.mesh.F);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    if (E(e, 0) < c.body_vertices) continue;
+    EXPECT_LT((V.row(E(e, 0)) - V.row(E(e, 1))).norm(), 0.06f * 1.4143f + 0.3f) << "edge " << e;
+  }
+}
+
+TEST(PenetrationResolver, SmoothingMovesTheFirstRingByHalfThePush) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationOptions options;
+  options.smoothing_rings = 1;
+  options.falloff = 0.5f;
+  PenetrationResolver resolver(c.mesh.F, c.mask, options);
+  MatrixX3f V = c.mesh.V;
+  const PenetrationReport report = resolver.resolve(V);
+  EXPECT_EQ(report.after.inside, 0);
+  // Sheet vertex (i, j) = (15, 10) is outside (5^2 + 0^2 = 25 > 22); its inside neighbours are (14, 10)
+  // and (14, 9) (16 and 17 <= 22), so it moves by half the mean of their pushes: less than they do.
+  const int ring = c.body_vertices + 10 * 21 + 15, inner = c.body_vertices + 10 * 21 + 14;
+  const float moved_ring = (V.row(ring) - c.mesh.V.row(ring)).norm();
+  const float moved_inner = (V.row(inner) - c.mesh.V.row(inner)).norm();
+  EXPECT_GT(moved_ring, 0.0f);
+  EXPECT_LT(moved_ring, moved_inner);
+  // Ring 2 does not move with one ring of smoothing.
+  const int far = c.body_vertices + 10 * 21 + 16;
+  EXPECT_EQ(V.row(far), c.mesh.V.row(far));
+}
+
+// One resolver over frames whose body moves (its tree refitted per frame) gives what a fresh resolver
+// (a tree built on that frame) gives.
+TEST(PenetrationResolver, FollowsAMovingBodyAcrossFrames) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationResolver resolver(c.mesh.F, c.mask);
+  for (int frame = 0; frame < 4; ++frame) {
+    MatrixX3f V = c.mesh.V;
+    const Eigen::RowVector3f shift(0.02f * float(frame), -0.01f * float(frame), 0.03f * float(frame));
+    const float stretch = 1.0f + 0.1f * float(frame);
+    for (int i = 0; i < c.body_vertices; ++i) V.row(i) = Eigen::RowVector3f(stretch * V(i, 0), V(i, 1), V(i, 2)) + shift;
+    PenetrationResolver fresh(c.mesh.F, c.mask);
+    const Penetration expected = fresh.measure(V);
+    EXPECT_GT(expected.inside, 40) << "frame " << frame;
+    EXPECT_EQ(resolver.measure(V).inside, expected.inside) << "frame " << frame;
+    MatrixX3f V_fresh = V;
+    const PenetrationReport want = fresh.resolve(V_fresh);
+    const PenetrationReport got = resolver.resolve(V);
+    EXPECT_EQ(got.before.inside, want.before.inside) << "frame " << frame;
+    EXPECT_EQ(got.pushed, want.pushed) << "frame " << frame;
+    EXPECT_EQ(got.after.inside, 0) << "frame " << frame;
+    EXPECT_LT((V - V_fresh).cwiseAbs().maxCoeff(), 1e-5f) << "frame " << frame;
+  }
+}
+
+TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
+  const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 8, 6);
+  PenetrationResolver body_only(sphere.F, std::vector<uint8_t>(size_t(sphere.num_vertices()), 0));
+  MatrixX3f V = sphere.V;
+  EXPECT_EQ(body_only.resolve(V).after.inside, 0);
+  PenetrationResolver apparel_only(sphere.F, std::vector<uint8_t>(size_t(sphere.num_vertices()), 1));
+  EXPECT_EQ(apparel_only.resolve(V).pushed, 0);
+  EXPECT_EQ(V, sphere.V);
+}
+
+}  // namespace
+}  // namespace amt

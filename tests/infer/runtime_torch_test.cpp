@@ -1,0 +1,257 @@
+// The runtime end to end on tiny inputs: bind cache hit and invalidation, frame count and fps of the
+// output, equality with the pipeline's forward pass (the trainer's and evaluation's path), and the
+// bad inputs of issue 6 (clear one-line errors, nothing written).
+#include "infer/runtime_torch.h"
+
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "data_tools/dataset_file.h"
+#include "data_tools/gltf_import.h"
+#include "data_tools/obj_io.h"
+#include "data_tools/shapes.h"
+#include "tests/test_support.h"
+#include "tests/train/micro_dataset.h"
+#include "train/checkpoint.h"
+#include "train/module_options.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+template <typename Net>
+void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json,
+                const std::vector<std::string>& joints) {
+  CheckpointInfo info;
+  info.kind = kind;
+  info.options_json = options_json;
+  info.config_json = "{}";
+  info.joint_names = joints;
+  save_checkpoint(path, info, *net, nullptr);
+}
+
+// A model folder of small freshly initialised networks (seeded); the refiner starts non-zero.
+std::string write_model(const fs::path& dir, uint64_t seed = 7,
+                        const std::vector<std::string>& joints = canonical_joint_names()) {
+  fs::create_directories(dir);
+  torch::manual_seed(seed);
+  ApparelSegmenterOptions so;
+  so.encoder_widths = {16, 32};
+  so.decoder_widths = {16};
+  save_fresh((dir / "segmenter.ckpt").string(), ModuleKind::kSegmenter, ApparelSegmenter(so), options_to_json(so),
+             joints);
+  SkinningPredictorOptions ko;
+  ko.feature_widths = {16, 16};
+  ko.head_encoder_widths = {16, 32};
+  ko.head_decoder_widths = {16};
+  save_fresh((dir / "skinning.ckpt").string(), ModuleKind::kSkinning, SkinningPredictor(ko), options_to_json(ko),
+             joints);
+  ApparelDisplacementOptions ao;
+  ao.motion_widths = {16};
+  ao.motion_code = 8;
+  ao.edge_widths = {16, 16};
+  ao.decoder_widths = {16};
+  save_fresh((dir / "apparel.ckpt").string(), ModuleKind::kApparel, ApparelDisplacementNet(ao), options_to_json(ao),
+             joints);
+  JointRefinerOptions ro;
+  ro.hidden_widths = {16};
+  ro.zero_init = false;
+  save_fresh((dir / "refiner.ckpt").string(), ModuleKind::kRefiner, JointRefiner(ro), options_to_json(ro), joints);
+  return dir.string();
+}
+
+// The micro dataset (capsule character whose pelvis capsules are apparel, 30-frame walks) and its mask.
+struct Fixture {
+  fs::path dir;
+  std::string data, model, mask;
+};
+
+Fixture make_fixture(const std::string& name) {
+  Fixture f;
+  f.dir = test::temp_dir(name);
+  f.data = (f.dir / "micro.h5").string();
+  test::write_micro_dataset(f.data);
+  f.model = write_model(f.dir / "model");
+  // The ground-truth mask as an artist's mask file, so the (untrained) segmenter does not decide.
+  const CharacterData c = DatasetReader(f.data).read_character("capsules");
+  f.mask = (f.dir / "mask.txt").string();
+  std::ofstream out(f.mask);
+  for (uint8_t m : c.apparel_mask) out << int(m) << "\n";
+  return f;
+}
+
+AnimateOptions options_for(const Fixture& f, const std::string& out) {
+  AnimateOptions o;
+  o.character.spec = f.data + ":capsules";
+  o.motion.spec = f.data + ":walk0";
+  o.model_dir = f.model;
+  o.apparel_mask = f.mask;
+  o.out = out;
+  o.verbose = false;
+  return o;
+}
+
+std::vector<fs::path> files_in(const fs::path& dir) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
+  const Fixture f = make_fixture("bind_cache");
+  const ModelBundle bundle = load_model_bundle(f.model);
+  const CharacterData c = DatasetReader(f.data).read_character("capsules");
+  const std::string cache = (f.dir / "capsules.bind").string();
+  const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  EXPECT_FALSE(first.cache_hit);
+  EXPECT_EQ(first.reason, "no cache file");
+  ASSERT_TRUE(fs::exists(cache));
+  const BindResult second = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  EXPECT_TRUE(second.cache_hit) << second.reason;
+  EXPECT_TRUE(at::equal(first.bound.body_weights, second.bound.body_weights));
+  EXPECT_TRUE(at::equal(first.bound.apparel_neighbors, second.bound.apparel_neighbors));
+  EXPECT_TRUE(at::equal(first.bound.apparel_ids, second.bound.apparel_ids));
+  EXPECT_TRUE(at::equal(first.bound.G_body, second.bound.G_body));
+  // A moved vertex: another key, recomputed, and the file now holds the new bind.
+  TriMesh moved = c.mesh;
+  moved.V(0, 1) += 0.01f;
+  const BindResult third = bind_cached(bundle, moved, c.skeleton.rest_joints, c.apparel_mask, cache);
+  EXPECT_FALSE(third.cache_hit);
+  EXPECT_NE(third.reason.find("another mesh or model"), std::string::npos) << third.reason;
+  EXPECT_TRUE(bind_cached(bundle, moved, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
+  // Another mask override, and another model (same architecture, other weights): misses.
+  std::vector<uint8_t> other_mask = c.apparel_mask;
+  other_mask[0] ^= 1;
+  EXPECT_FALSE(bind_cached(bundle, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
+  write_model(f.dir / "model", 8);
+  const ModelBundle retrained = load_model_bundle(f.model);
+  EXPECT_FALSE(bind_cached(retrained, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
+}
+
+TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {
+  const Fixture f = make_fixture("animate_glb");
+  AnimateOptions o = options_for(f, (f.dir / "out" / "walk.glb").string());
+  const AnimateSummary s = animate(o);
+  EXPECT_EQ(s.frames, 30);
+  EXPECT_FLOAT_EQ(s.fps, 30.0f);
+  EXPECT_TRUE(s.exact_motion);
+  EXPECT_FALSE(s.bind_cache_hit);
+  EXPECT_EQ(s.bind_path, (f.dir / "out" / "walk.bind").string());
+  EXPECT_EQ(s.after.total, 30 * s.apparel_vertices);
+  EXPECT_LE(s.after.inside, s.before.inside);
+  const GltfAsset asset = read_gltf(o.out);
+  EXPECT_EQ(gltf_vertex_animation(asset, "", 30.0f).frames.size(), 30u);
+  ASSERT_EQ(asset.animations().size(), 1u);
+  EXPECT_NEAR(asset.animations()[0].duration(), 29.0f / 30.0f, 1e-5f);
+  test::expect_valid_gltf(o.out);
+  // Again: the bind comes from the cache. Resampled to 15 fps and cut to 7 frames.
+  o.playback.fps = 15.0f;
+  o.playback.frames = 7;
+  const AnimateSummary again = animate(o);
+  EXPECT_TRUE(again.bind_cache_hit);
+  EXPECT_FALSE(again.exact_motion);
+  EXPECT_EQ(again.frames, 7);
+  const GltfAsset short_asset = read_gltf(o.out);
+  EXPECT_EQ(gltf_vertex_animation(short_asset, "", 15.0f).frames.size(), 7u);
+  EXPECT_NEAR(short_asset.animations()[0].duration(), 6.0f / 15.0f, 1e-5f);
+  EXPECT_EQ(files_in(f.dir / "out"), (std::vector<fs::path>{"walk.bind", "walk.glb"}));
+}
+
+TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
+  const Fixture f = make_fixture("animate_equal");
+  AnimateOptions o = options_for(f, (f.dir / "pred.h5").string());
+  o.playback.lead_in = 0;
+  o.resolve_penetration = false;
+  o.bind_path = "none";
+  const AnimateSummary s = animate(o);
+  ASSERT_EQ(s.frames, 30);
+  // The same model, character and clip through run_pipeline from the rest history.
+  const ModelBundle bundle = load_model_bundle(f.model);
+  DatasetReader truth(f.data);
+  const CharacterData c = truth.read_character("capsules");
+  const BindResult bind = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "");
+  const Transforms T = truth.read_joint_transforms("walk0", 0, 30);
+  at::Tensor transforms = at::empty({30, 22, 3, 4});
+  for (int k = 0; k < 30 * 22; ++k) {
+    std::memcpy(transforms.data_ptr<float>() + 12 * k, T[size_t(k)].data(), 12 * sizeof(float));
+  }
+  const at::Tensor expected = run_pipeline(bundle, bind.bound, rest_apparel_history(bind.bound), transforms);
+  DatasetReader predicted(o.out);
+  EXPECT_EQ(predicted.clip_names(), std::vector<std::string>{"walk0"});
+  EXPECT_EQ(predicted.character_names(), std::vector<std::string>{"capsules"});
+  EXPECT_EQ(predicted.read_character("capsules").apparel_mask, c.apparel_mask);
+  const MatrixX3f V = predicted.read_vertices("walk0", 0, 30);
+  const at::Tensor got = at::from_blob(const_cast<float*>(V.data()), {30, V.rows() / 30, 3}, at::kFloat);
+  EXPECT_LT((got - expected).abs().max().item<float>(), 1e-6f);
+  // Apparel really moved away from rigid skinning (the model ran): the refiner and apparel step act.
+  EXPECT_GT((got[29] - got[0]).abs().max().item<float>(), 0.01f);
+  EXPECT_EQ(files_in(f.dir), (std::vector<fs::path>{"mask.txt", "micro.h5", "model", "pred.h5"}));
+}
+
+TEST(Animate, BadInputGivesOneLineErrorsAndWritesNothing) {
+  const Fixture f = make_fixture("animate_bad");
+  const fs::path out_dir = f.dir / "out";
+  // A character without joints and no joints file.
+  {
+    AnimateOptions o = options_for(f, (out_dir / "a.glb").string());
+    o.character.spec = (f.dir / "blob.obj").string();
+    write_obj(o.character.spec, uv_sphere(Eigen::Vector3f::Zero(), 0.5f, 8, 6));
+    const std::string e = test::error_of([&] { animate(o); });
+    EXPECT_NE(e.find("blob.obj: joints: the character has no skeleton"), std::string::npos) << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+  }
+  // A motion whose skeleton cannot be mapped.
+  {
+    AnimateOptions o = options_for(f, (out_dir / "b.glb").string());
+    o.motion.spec = (f.dir / "tentacle.bvh").string();
+    std::ofstream(o.motion.spec) << "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                                    " JOINT b\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                                    "  End Site\n  {\n   OFFSET 0 10 0\n  }\n }\n}\nMOTION\nFrames: 2\n"
+                                    "Frame Time: 0.0333333\n0 0 0 0 0 0\n0 0 0 0 10 0\n";
+    const std::string e = test::error_of([&] { animate(o); });
+    EXPECT_NE(e.find("tentacle.bvh"), std::string::npos) << e;
+    EXPECT_NE(e.find("--motion-joint-map"), std::string::npos) << e;
+  }
+  // A model trained on another skeleton.
+  {
+    std::vector<std::string> names;
+    for (int j = 0; j < 22; ++j) names.push_back("bone" + std::to_string(j));
+    AnimateOptions o = options_for(f, (out_dir / "c.glb").string());
+    o.model_dir = write_model(f.dir / "other_model", 7, names);
+    const std::string e = test::error_of([&] { animate(o); });
+    EXPECT_NE(e.find("other_model"), std::string::npos) << e;
+    EXPECT_NE(e.find("bone0"), std::string::npos) << e;
+  }
+  // An unwritable output: a folder below a regular file.
+  {
+    std::ofstream(f.dir / "plain_file") << "x";
+    AnimateOptions o = options_for(f, (f.dir / "plain_file" / "d.glb").string());
+    const std::string e = test::error_of([&] { animate(o); });
+    EXPECT_NE(e.find("d.glb: --out: expected a writable location"), std::string::npos) << e;
+  }
+  // Output names that are not an output kind.
+  {
+    AnimateOptions o = options_for(f, (out_dir / "e.gltf").string());
+    EXPECT_NE(test::error_of([&] { animate(o); }).find("expected .glb"), std::string::npos);
+  }
+  EXPECT_FALSE(fs::exists(out_dir) && !fs::is_empty(out_dir));
+}
+
+TEST(Animate, ObjFolderHasOneFilePerFrame) {
+  const Fixture f = make_fixture("animate_obj");
+  AnimateOptions o = options_for(f, (f.dir / "frames").string());
+  o.playback.frames = 3;
+  const AnimateSummary s = animate(o);
+  EXPECT_EQ(s.frames, 3);
+  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{"frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
+  EXPECT_EQ(read_obj((f.dir / "frames" / "frame_0002.obj").string()).num_vertices(), s.vertices);
+  EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));
+}
+
+}  // namespace
+}  // namespace amt

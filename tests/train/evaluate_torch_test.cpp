@@ -1,0 +1,214 @@
+// Tests of train/evaluate.h and train/report.h: the skinning baseline scores zero on a dataset whose
+// ground truth is LBS, predictions files are scored with the same code, the report has the tables.
+#include "train/evaluate.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "data_tools/dataset_file.h"
+#include "data_tools/example_dataset.h"
+#include "data_tools/lbs.h"
+#include "data_tools/procedural_motion.h"
+#include "data_tools/skeleton.h"
+#include "micro_dataset.h"
+#include "train/module_options.h"
+#include "train/report.h"
+
+namespace amt {
+namespace {
+
+template <typename Net>
+void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json) {
+  CheckpointInfo info;
+  info.kind = kind;
+  info.options_json = options_json;
+  info.config_json = "{}";
+  info.joint_names = canonical_joint_names();
+  save_checkpoint(path, info, *net, nullptr);
+}
+
+// Freshly initialised small modules in a model folder, with a training log to plot.
+std::string write_fresh_bundle(const std::string& name) {
+  const std::string dir = test::test_directory(name);
+  torch::manual_seed(3);
+  ApparelSegmenterOptions so;
+  so.encoder_widths = {16, 32};
+  so.decoder_widths = {16};
+  save_fresh(dir + "/segmenter.ckpt", ModuleKind::kSegmenter, ApparelSegmenter(so), options_to_json(so));
+  SkinningPredictorOptions ko;
+  ko.feature_widths = {16, 16};
+  ko.head_encoder_widths = {16, 32};
+  ko.head_decoder_widths = {16};
+  save_fresh(dir + "/skinning.ckpt", ModuleKind::kSkinning, SkinningPredictor(ko), options_to_json(ko));
+  ApparelDisplacementOptions ao;
+  ao.motion_widths = {16};
+  ao.motion_code = 8;
+  ao.edge_widths = {16};
+  ao.decoder_widths = {16};
+  save_fresh(dir + "/apparel.ckpt", ModuleKind::kApparel, ApparelDisplacementNet(ao), options_to_json(ao));
+  JointRefinerOptions ro;
+  ro.hidden_widths = {16};
+  save_fresh(dir + "/refiner.ckpt", ModuleKind::kRefiner, JointRefiner(ro), options_to_json(ro));
+  std::ofstream(dir + "/apparel.csv") << "step,loss,vertex,edge,val_loss\n1,0.5,0.4,0.001,\n2,0.25,0.2,0.0005,0.3\n";
+  return dir;
+}
+
+// A dataset whose ground truth IS LBS with the ground-truth weights (apparel included): one test
+// character with one walk, one train character with a train walk and a test walk.
+void write_lbs_dataset(const std::string& path, int frames) {
+  const Skeleton skeleton = canonical_skeleton();
+  DatasetWriter writer(path, 30.0f, skeleton.names);
+  for (const std::string split : {"test", "train"}) {
+    CharacterData character = capsule_example_character(skeleton, 160);
+    character.name = "capsules_" + split;
+    character.split = split;
+    for (int i = 0; i < character.mesh.num_vertices(); ++i)
+      character.apparel_mask[i] = character.body_weights(i, kPelvis) == 1.0f ? 1 : 0;
+    writer.add_character(character);
+    const SparseWeights weights = sparsify_weights(character.body_weights);
+    for (int c = 0; c < (split == "train" ? 2 : 1); ++c) {
+      Motion walk = walk_motion(frames, 30.0f, 1.0f + 0.3f * c);
+      ClipInfo clip;
+      clip.name = "walk_" + split + std::to_string(c);
+      clip.character = character.name;
+      clip.motion = "procedural_walk";
+      clip.split = c == 0 ? "test" : "train";
+      writer.begin_clip(clip);
+      for (int t = 0; t < frames; ++t) {
+        const Transforms joints = forward_kinematics(skeleton, walk, t);
+        MatrixX3f posed;
+        linear_blend_skinning(character.mesh.V, weights, skinning_matrices(skeleton, joints), posed);
+        writer.append_frame(joints, posed);
+      }
+      writer.end_clip();
+    }
+  }
+  writer.commit();
+}
+
+TEST(Evaluate, SkinningBaselineIsZeroWhenTheGroundTruthIsLbs) {
+  test::use_one_thread();
+  const std::string data = test::test_directory("eval_lbs") + "/lbs.h5";
+  write_lbs_dataset(data, 17);
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_bundle"));
+  EvaluateOptions options;
+  options.methods = {"skinning_baseline", "full"};
+  options.progress = false;
+  const EvaluationResult result = evaluate_model(bundle, {data}, options);
+  EXPECT_EQ(result.clips.at(kHeldOutCharacters), 1);
+  EXPECT_EQ(result.clips.at(kHeldOutClips), 1);
+  for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
+    const MethodScores* paper = result.find("skinning_baseline", "paper", subset);
+    ASSERT_NE(paper, nullptr) << subset;
+    // 17 frames: windows start at 0 and 7, each predicting 7 frames.
+    EXPECT_EQ(paper->scores.frames, 14);
+    EXPECT_EQ(paper->scores.clips, 1);
+    EXPECT_NEAR(paper->scores.pmd, 0.0, 1e-3);
+    EXPECT_NEAR(paper->scores.pmd_a, 0.0, 1e-3);
+    EXPECT_NEAR(paper->scores.pmd_b, 0.0, 1e-3);
+    EXPECT_NEAR(paper->scores.els, 1.0, 1e-4);
+    const MethodScores* rollout = result.find("skinning_baseline", "rollout", subset);
+    ASSERT_NE(rollout, nullptr);
+    EXPECT_EQ(rollout->scores.frames, 17);
+    EXPECT_NEAR(rollout->scores.pmd, 0.0, 1e-3);
+    // The untrained full model is not LBS: it must score worse than zero.
+    const MethodScores* full = result.find("full", "paper", subset);
+    ASSERT_NE(full, nullptr);
+    EXPECT_GT(full->scores.pmd_a, 0.01);
+  }
+  EXPECT_EQ(result.characters.size(), 2u);
+  ASSERT_FALSE(result.curves.empty());
+  EXPECT_EQ(result.curves.front().pmd_a.size(), 17u);
+}
+
+TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_predictions");
+  write_lbs_dataset(dir + "/lbs.h5", 12);
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  const EvaluationResult result = evaluate_predictions({dir + "/lbs.h5"}, dir + "/lbs.h5", options);
+  const MethodScores* row = result.find("predictions", "file", kHeldOutClips);
+  ASSERT_NE(row, nullptr);
+  EXPECT_EQ(row->scores.frames, 12);
+  EXPECT_DOUBLE_EQ(row->scores.pmd, 0.0);
+  EXPECT_DOUBLE_EQ(row->scores.els, 1.0);
+  EXPECT_NE(test::error_of([&] { evaluate_predictions({dir + "/lbs.h5"}, dir + "/none.h5", options); })
+                .find("none.h5: no such predictions file"),
+            std::string::npos);
+}
+
+TEST(Evaluate, SkeletonMismatchAndUnknownMethod) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_errors");
+  std::vector<std::string> names = canonical_joint_names();
+  names[0] = "hips";
+  test::MicroDatasetOptions micro;
+  micro.vertices = 120;
+  micro.frames = 4;
+  micro.clips = 1;
+  micro.joint_names = names;
+  test::write_micro_dataset(dir + "/other.h5", micro);
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_errors_bundle"));
+  EvaluateOptions options;
+  options.progress = false;
+  const std::string message = test::error_of([&] { evaluate_model(bundle, {dir + "/other.h5"}, options); });
+  EXPECT_NE(message.find(dir + "/other.h5: skeleton: the model"), std::string::npos) << message;
+  options.methods = {"magic"};
+  EXPECT_NE(test::error_of([&] { evaluate_model(bundle, {dir + "/other.h5"}, options); }).find("found 'magic'"),
+            std::string::npos);
+}
+
+TEST(Report, WritesTablesJsonAndPlots) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("report");
+  write_lbs_dataset(dir + "/lbs.h5", 12);
+  const std::string model = write_fresh_bundle("report_bundle");
+  const ModelBundle bundle = load_model_bundle(model);
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  const EvaluationResult result = evaluate_model(bundle, {dir + "/lbs.h5"}, options);
+  // No ablation checkpoints in the folder: the report says so.
+  ASSERT_EQ(result.notes.size(), 2u);
+  EXPECT_NE(result.notes[0].find("skinning_no_geodesic.ckpt is not in the model folder"), std::string::npos);
+
+  ReportOptions report;
+  report.out_dir = dir + "/out";
+  report.model_dir = model;
+  report.command = "amt eval --data lbs.h5";
+  const ReportFiles files = write_report(result, report);
+  std::stringstream md;
+  md << std::ifstream(files.markdown).rdbuf();
+  for (const char* heading : {"## Table 2 analogue", "## Table 3 analogue", "## Table 4 analogue", "## Rollout drift",
+                              "## Per character", "## Targets", "capsules_test", "skinning_sorted.ckpt"}) {
+    EXPECT_NE(md.str().find(heading), std::string::npos) << heading;
+  }
+  EXPECT_NE(md.str().find("| held-out clips | Skinning baseline (LBS, GT body weights) | 0.00 | 0.00 | 0.00 | 1.000 |"),
+            std::string::npos)
+      << md.str();
+  std::stringstream json;
+  json << std::ifstream(files.json).rdbuf();
+  EXPECT_NE(json.str().find("\"format\": \"amt-eval\""), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(files.json + ".tmp"));
+  if (!gnuplot_png_terminal().empty()) {
+    ASSERT_EQ(files.plots.size(), 2u) << md.str();
+    EXPECT_EQ(files.plots[0], "loss_apparel.png");
+    EXPECT_EQ(files.plots[1], "rollout_pmd_a.png");
+    for (const std::string& plot : files.plots) EXPECT_GT(std::filesystem::file_size(report.out_dir + "/" + plot), 1000u);
+  }
+  const std::vector<TrainingLog> logs = read_training_logs(model);
+  ASSERT_EQ(logs.size(), 1u);
+  EXPECT_EQ(logs[0].column("val_loss"), 4);
+  EXPECT_TRUE(std::isnan(logs[0].rows[0][4]));
+  EXPECT_DOUBLE_EQ(logs[0].rows[1][1], 0.25);
+}
+
+}  // namespace
+}  // namespace amt

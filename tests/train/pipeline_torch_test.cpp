@@ -1,0 +1,270 @@
+// Tests of train/pipeline.h: bundle loading errors, bind equal to the trainer's per-character tensors,
+// the stepper equal to the networks run on whole sequences, the motion lead-in.
+#include "train/pipeline.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "data_tools/dataset_file.h"
+#include "data_tools/lbs_torch.h"
+#include "data_tools/skeleton.h"
+#include "micro_dataset.h"
+#include "train/module_options.h"
+#include "train/samples.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+// === Helpers
+
+template <typename Net>
+void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json,
+                const std::vector<std::string>& joints) {
+  CheckpointInfo info;
+  info.kind = kind;
+  info.options_json = options_json;
+  info.config_json = "{}";
+  info.joint_names = joints;
+  save_checkpoint(path, info, *net, nullptr);
+}
+
+// A model folder of freshly initialised (seeded) modules; the refiner starts non-zero so it matters.
+std::string write_fresh_bundle(const std::string& name, const std::vector<std::string>& joints = canonical_joint_names()) {
+  const std::string dir = test::test_directory(name);
+  torch::manual_seed(7);
+  const int64_t J = static_cast<int64_t>(joints.size());
+  ApparelSegmenterOptions so;
+  so.encoder_widths = {16, 32};
+  so.decoder_widths = {16};
+  ApparelSegmenter segmenter(so);
+  save_fresh(dir + "/segmenter.ckpt", ModuleKind::kSegmenter, segmenter, options_to_json(so), joints);
+  SkinningPredictorOptions ko;
+  ko.num_joints = J;
+  ko.feature_widths = {16, 16};
+  ko.head_encoder_widths = {16, 32};
+  ko.head_decoder_widths = {16};
+  SkinningPredictor skinning(ko);
+  save_fresh(dir + "/skinning.ckpt", ModuleKind::kSkinning, skinning, options_to_json(ko), joints);
+  ApparelDisplacementOptions ao;
+  ao.num_joints = J;
+  ao.motion_widths = {16};
+  ao.motion_code = 8;
+  ao.edge_widths = {16, 16};
+  ao.decoder_widths = {16};
+  ApparelDisplacementNet apparel(ao);
+  save_fresh(dir + "/apparel.ckpt", ModuleKind::kApparel, apparel, options_to_json(ao), joints);
+  JointRefinerOptions ro;
+  ro.hidden_widths = {16};
+  ro.zero_init = false;
+  JointRefiner refiner(ro);
+  save_fresh(dir + "/refiner.ckpt", ModuleKind::kRefiner, refiner, options_to_json(ro), joints);
+  return dir;
+}
+
+struct MicroCharacter {
+  CharacterData data;
+  at::Tensor V, F, joints, mask;
+};
+
+MicroCharacter read_micro(const std::string& path) {
+  DatasetReader reader(path);
+  MicroCharacter c;
+  c.data = reader.read_character(reader.character_names().front());
+  const int64_t N = c.data.mesh.num_vertices(), J = c.data.skeleton.num_joints();
+  c.V = at::from_blob(c.data.mesh.V.data(), {N, 3}, at::kFloat).clone();
+  c.F = at::from_blob(c.data.mesh.F.data(), {c.data.mesh.F.rows(), 3}, at::kInt).clone();
+  c.joints = at::from_blob(c.data.skeleton.rest_joints.data(), {J, 3}, at::kFloat).clone();
+  c.mask = at::from_blob(c.data.apparel_mask.data(), {N}, at::kByte).to(at::kBool);
+  return c;
+}
+
+// === Loading
+
+TEST(PipelineBundle, LoadsFourModulesInEvalMode) {
+  test::use_one_thread();
+  const std::string dir = write_fresh_bundle("bundle_ok");
+  const ModelBundle bundle = load_model_bundle(dir);
+  EXPECT_EQ(bundle.num_joints(), 22);
+  EXPECT_EQ(bundle.infos.size(), 4u);
+  EXPECT_FALSE(bundle.segmenter->is_training());
+  EXPECT_FALSE(bundle.refiner->is_training());
+  EXPECT_TRUE(bundle.skinning_no_geodesic.is_empty());
+  EXPECT_NE(test::error_of([&] { bundle.skinning_for(SkinningVariant::kSortByGeodesic); }).find("skinning_sorted.ckpt"),
+            std::string::npos);
+}
+
+TEST(PipelineBundle, ClearErrors) {
+  test::use_one_thread();
+  const std::string dir = write_fresh_bundle("bundle_errors");
+  EXPECT_NE(test::error_of([&] { load_model_bundle(dir + "/nowhere"); }).find("no such model folder"),
+            std::string::npos);
+
+  fs::rename(dir + "/apparel.ckpt", dir + "/apparel.bak");
+  EXPECT_EQ(test::error_of([&] { load_model_bundle(dir); }),
+            dir + "/apparel.ckpt: no such checkpoint (train it with amt train apparel)");
+
+  fs::copy_file(dir + "/segmenter.ckpt", dir + "/apparel.ckpt");  // another kind
+  EXPECT_EQ(test::error_of([&] { load_model_bundle(dir); }),
+            dir + "/apparel.ckpt: kind: expected 'apparel', found 'segmenter'");
+  fs::remove(dir + "/apparel.ckpt");
+  fs::rename(dir + "/apparel.bak", dir + "/apparel.ckpt");
+
+  // A refiner trained on another skeleton.
+  std::vector<std::string> other = canonical_joint_names();
+  other[3] = "chest";
+  const std::string other_dir = write_fresh_bundle("bundle_other", other);
+  fs::copy_file(other_dir + "/refiner.ckpt", dir + "/refiner.ckpt", fs::copy_options::overwrite_existing);
+  const std::string message = test::error_of([&] { load_model_bundle(dir); });
+  EXPECT_NE(message.find(dir + "/refiner.ckpt: skeleton: trained on 22 joints"), std::string::npos) << message;
+  EXPECT_NE(message.find("must share one skeleton"), std::string::npos) << message;
+}
+
+// === Bind
+
+TEST(PipelineBind, MatchesTheTrainersCharacterTensors) {
+  test::use_one_thread();
+  const std::string dir = write_fresh_bundle("bind_bundle");
+  const std::string data = test::test_directory("bind_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1});
+  const ModelBundle bundle = load_model_bundle(dir);
+  const MicroCharacter c = read_micro(data);
+
+  BindOptions options;
+  options.apparel_mask = c.mask;  // the ground truth, as the trainer uses
+  options.all_vertex_weights = true;
+  const BoundCharacter b = bind_character(bundle, c.V, c.F, c.joints, options);
+
+  SampleSourceOptions so;
+  so.kind = ModuleKind::kSkinning;
+  so.frames = 4;
+  SampleSource source({data}, so);
+  const auto t = source.character(0);
+  EXPECT_TRUE(at::equal(b.apparel_ids, t->apparel_ids));
+  EXPECT_TRUE(at::equal(b.body_ids, t->body_ids));
+  EXPECT_TRUE(at::equal(b.edges, t->edges));
+  EXPECT_TRUE(at::equal(b.body_edges, t->body_edges));
+  EXPECT_TRUE(at::equal(b.apparel_edges, t->apparel_edges));
+  EXPECT_TRUE(at::equal(b.apparel_neighbors, t->apparel_neighbors));
+  EXPECT_TRUE(at::equal(b.G_body, t->G_body));
+  torch::NoGradGuard no_grad;
+  const at::Tensor W = bundle.skinning.ptr()->forward(t->V.index_select(0, t->body_ids), t->joints, t->G_body);
+  EXPECT_TRUE(at::equal(b.body_weights, W));
+
+  // Shapes, probabilities, weights of every vertex (body rows = the body part's).
+  const int64_t N = c.V.size(0), N_a = b.num_apparel(), N_b = b.num_body();
+  EXPECT_GT(N_a, 0);
+  EXPECT_EQ(N_a + N_b, N);
+  EXPECT_EQ(b.apparel_prob.sizes(), (at::IntArrayRef{N}));
+  EXPECT_TRUE(at::all(b.apparel_prob.ge(0) & b.apparel_prob.le(1)).item<bool>());
+  EXPECT_EQ(b.vertex_weights.sizes(), (at::IntArrayRef{N, 22}));
+  EXPECT_TRUE(at::allclose(b.vertex_weights.sum(1), at::ones({N}), 1e-5, 1e-5));
+  EXPECT_TRUE(at::equal(b.vertex_weights.index_select(0, b.body_ids), b.body_weights));
+  EXPECT_TRUE(at::equal(b.refiner_prob, c.mask.to(at::kFloat)));
+
+  // Without an override the mask is p̂ > 0.5.
+  const BoundCharacter predicted = bind_character(bundle, c.V, c.F, c.joints);
+  EXPECT_TRUE(at::equal(predicted.apparel_mask, predicted.apparel_prob.gt(0.5)));
+
+  EXPECT_EQ(test::error_of([&] { bind_character(bundle, c.V, c.F, c.joints.narrow(0, 0, 21)); }),
+            "bind: joints: expected (22, 3) rest joints (the model's skeleton), found [21, 3]");
+  BindOptions bad;
+  bad.apparel_mask = c.mask.narrow(0, 0, 10);
+  EXPECT_EQ(test::error_of([&] { bind_character(bundle, c.V, c.F, c.joints, bad); }),
+            "bind: apparel mask: expected " + std::to_string(c.V.size(0)) + " values (one per vertex), found 10");
+}
+
+// === Stepping
+
+TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
+  test::use_one_thread();
+  const std::string dir = write_fresh_bundle("step_bundle");
+  const std::string data = test::test_directory("step_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1});
+  const ModelBundle bundle = load_model_bundle(dir);
+  const MicroCharacter c = read_micro(data);
+  BindOptions options;
+  options.apparel_mask = c.mask;
+  const BoundCharacter b = bind_character(bundle, c.V, c.F, c.joints, options);
+
+  DatasetReader reader(data);
+  const int T = 10, J = 22;
+  const Transforms transforms = reader.read_joint_transforms("walk0", 0, T);
+  at::Tensor motion = at::empty({T, J, 3, 4});
+  for (int i = 0; i < T * J; ++i)
+    std::memcpy(motion.data_ptr<float>() + 12 * i, transforms[i].data(), 12 * sizeof(float));
+  const MatrixX3f gt = reader.read_vertices("walk0", 0, T);
+  const int64_t N = c.V.size(0);
+  const at::Tensor V_gt = at::from_blob(const_cast<float*>(gt.data()), {T, N, 3}, at::kFloat).clone();
+  const at::Tensor history = V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
+
+  PipelineStepper stepper(bundle, b, history);
+  std::vector<at::Tensor> V_hat, A_hat, B_hat;
+  for (int t = 3; t < T; ++t) {
+    const StepOutput out = stepper.step_detailed(motion[t]);
+    EXPECT_EQ(out.V_hat.sizes(), (at::IntArrayRef{N, 3}));
+    V_hat.push_back(out.V_hat.clone());
+    A_hat.push_back(out.A_hat.clone());
+    B_hat.push_back(out.B_hat.clone());
+  }
+  EXPECT_EQ(stepper.frames(), T - 3);
+
+  // The same through the networks' sequence forms, as the trainer runs them.
+  torch::NoGradGuard no_grad;
+  const at::Tensor future = motion.narrow(0, 3, T - 3);
+  const at::Tensor A_ref = bundle.apparel.ptr()->rollout(history, future, b.apparel_neighbors);
+  const at::Tensor B_ref = linear_blend_skinning(c.V.index_select(0, b.body_ids), b.body_weights, future, c.joints);
+  const at::Tensor V_ref =
+      bundle.refiner.ptr()->forward(tile_apparel_body(A_ref, B_ref, b.apparel_mask), c.V, c.mask.to(at::kFloat)).V_hat;
+  EXPECT_TRUE(at::allclose(at::stack(A_hat), A_ref, 1e-5, 1e-6));
+  EXPECT_TRUE(at::allclose(at::stack(B_hat), B_ref, 1e-5, 1e-6));
+  EXPECT_TRUE(at::allclose(at::stack(V_hat), V_ref, 1e-5, 1e-6));
+  // The refiner changed something (it is not the identity), so the comparison covers it.
+  EXPECT_GT((V_ref - tile_apparel_body(A_ref, B_ref, b.apparel_mask)).abs().max().item<float>(), 1e-4f);
+
+  // run_pipeline is the same loop; body + apparel is the tiled result.
+  EXPECT_TRUE(at::allclose(run_pipeline(bundle, b, history, future), V_ref, 1e-5, 1e-6));
+  EXPECT_TRUE(at::allclose(run_pipeline(bundle, b, history, future, PipelineStages::kBodyApparel),
+                           tile_apparel_body(A_ref, B_ref, b.apparel_mask), 1e-5, 1e-6));
+  EXPECT_EQ(test::error_of([&] { PipelineStepper(bundle, b, history, PipelineStages::kBodyOnly); }),
+            "pipeline: body only needs weights of every vertex (bind with BindOptions::all_vertex_weights or "
+            "BindOptions::weights)");
+  EXPECT_EQ(test::error_of([&] { PipelineStepper(bundle, b, history.narrow(0, 0, 2)); }),
+            "pipeline: apparel history: expected (3, " + std::to_string(b.num_apparel()) + ", 3), found [2, " +
+                std::to_string(b.num_apparel()) + ", 3]");
+}
+
+TEST(PipelineStart, RestHistoryAndLeadIn) {
+  // One joint rotated 90 degrees about Y and moved from (0, 1, 0) to (2, 1, 0): the middle lead-in frame
+  // is rotated 45 degrees and halfway there.
+  at::Tensor first = at::zeros({1, 3, 4});
+  first[0][0][2] = 1;
+  first[0][1][1] = 1;
+  first[0][2][0] = -1;
+  first[0][0][3] = 2;
+  first[0][1][3] = 1;
+  const at::Tensor rest = at::tensor({0.0f, 1.0f, 0.0f}).reshape({1, 3});
+  const at::Tensor lead = motion_lead_in(first, rest, 3);
+  ASSERT_EQ(lead.sizes(), (at::IntArrayRef{3, 1, 3, 4}));
+  const float h = std::sqrt(0.5f);
+  const at::Tensor expected = at::tensor({h, 0.0f, h, 1.0f, 0.0f, 1.0f, 0.0f, 1.0f, -h, 0.0f, h, 0.0f}).reshape({3, 4});
+  EXPECT_TRUE(at::allclose(lead[1][0], expected, 1e-5, 1e-6)) << lead[1][0];
+  EXPECT_NEAR(lead[0][0][0][3].item<float>(), 0.5f, 1e-6);
+  EXPECT_EQ(motion_lead_in(first, rest, 0).size(0), 0);
+
+  BoundCharacter b;
+  b.V = at::arange(12, at::kFloat).reshape({4, 3});
+  b.apparel_ids = at::tensor({1, 3}, at::kLong);
+  const at::Tensor history = rest_apparel_history(b);
+  ASSERT_EQ(history.sizes(), (at::IntArrayRef{3, 2, 3}));
+  EXPECT_TRUE(at::equal(history[2], b.V.index_select(0, b.apparel_ids)));
+}
+
+}  // namespace
+}  // namespace amt

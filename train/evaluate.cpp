@@ -1,0 +1,592 @@
+#include "train/evaluate.h"
+
+#include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <tuple>
+
+#include "data_tools/dataset_file.h"
+#include "data_tools/error.h"
+#include "data_tools/metrics_torch.h"
+#include "data_tools/winding_number.h"
+#include "train/samples.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kPaper = "paper";
+constexpr const char* kRollout = "rollout";
+constexpr int kHistory = 3;  // K of eq. 11
+
+// How a method binds the character and which stages it runs.
+struct MethodSpec {
+  std::string key;
+  // Bind configuration: "gt_weights", "predicted", "gt_mask", "gt_mask_no_geodesic", "gt_mask_sorted".
+  std::string bind;
+  PipelineStages stages;
+};
+
+const std::vector<MethodSpec>& method_specs() {
+  static const std::vector<MethodSpec> specs = {
+      {"skinning_baseline", "gt_weights", PipelineStages::kBodyOnly},
+      {"lbs_predicted", "predicted", PipelineStages::kBodyOnly},
+      {"body_apparel", "predicted", PipelineStages::kBodyApparel},
+      {"full", "predicted", PipelineStages::kFull},
+      {"full_gt_mask", "gt_mask", PipelineStages::kFull},
+      {"no_geodesic", "gt_mask_no_geodesic", PipelineStages::kFull},
+      {"sort_by_geodesic", "gt_mask_sorted", PipelineStages::kFull},
+  };
+  return specs;
+}
+
+at::Tensor float_tensor(const float* data, std::vector<int64_t> shape) {
+  return at::from_blob(const_cast<float*>(data), shape, at::kFloat).clone();
+}
+
+at::Tensor transforms_tensor(const Transforms& transforms, int64_t count, int64_t J) {
+  at::Tensor out = at::empty({count, J, 3, 4}, at::kFloat);
+  float* dst = out.data_ptr<float>();
+  for (size_t i = 0; i < transforms.size(); ++i) std::memcpy(dst + 12 * i, transforms[i].data(), 12 * sizeof(float));
+  return out;
+}
+
+MatrixX3f to_matrix(const at::Tensor& t) {
+  const at::Tensor c = t.to(at::kFloat).contiguous();
+  return Eigen::Map<const MatrixX3f>(c.data_ptr<float>(), c.size(0), 3);
+}
+
+std::string duration_text(double seconds) {
+  const long s = std::lround(std::max(0.0, seconds));
+  char buffer[32];
+  if (s >= 3600)
+    std::snprintf(buffer, sizeof buffer, "%ldh%02ldm", s / 3600, (s / 60) % 60);
+  else if (s >= 60)
+    std::snprintf(buffer, sizeof buffer, "%ldm%02lds", s / 60, s % 60);
+  else
+    std::snprintf(buffer, sizeof buffer, "%lds", s);
+  return buffer;
+}
+
+// Clips done / total, rate and ETA on one stderr line.
+class Progress {
+ public:
+  Progress(bool enabled, int total, std::string what) : enabled_(enabled), total_(total), what_(std::move(what)) {}
+  void update(int done) {
+    if (!enabled_) return;
+    const double elapsed = std::chrono::duration<double>(Clock::now() - start_).count();
+    const double rate = done > 0 ? done / std::max(elapsed, 1e-9) : 0.0;
+    std::fprintf(stderr, "\reval: %s %d/%d, %.2f clips/s, elapsed %s, ETA %s   ", what_.c_str(), done, total_, rate,
+                 duration_text(elapsed).c_str(), done > 0 ? duration_text((total_ - done) / rate).c_str() : "?");
+    if (done == total_) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  }
+
+ private:
+  bool enabled_;
+  int total_;
+  std::string what_;
+  Clock::time_point start_ = Clock::now();
+};
+
+// A held-out clip to evaluate.
+struct EvalClip {
+  int shard = 0;
+  ClipInfo info;
+  std::string subset;
+};
+
+// The held-out clips of the shards, per subset in file order, at most max_clips per subset.
+std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>& readers, int max_clips) {
+  std::vector<EvalClip> clips;
+  std::map<std::string, int> per_subset;
+  for (size_t s = 0; s < readers.size(); ++s) {
+    std::map<std::string, std::string> character_split;
+    for (const std::string& name : readers[s]->character_names())
+      character_split[name] = readers[s]->character_summary(name).split;
+    for (const std::string& name : readers[s]->clip_names()) {
+      ClipInfo info = readers[s]->clip_info(name);
+      std::string subset;
+      if (character_split.at(info.character) == "test")
+        subset = kHeldOutCharacters;
+      else if (info.split == "test")
+        subset = kHeldOutClips;
+      else
+        continue;
+      if (max_clips > 0 && per_subset[subset] >= max_clips) continue;
+      ++per_subset[subset];
+      clips.push_back({static_cast<int>(s), std::move(info), subset});
+    }
+  }
+  return clips;
+}
+
+// What the evaluation needs of one character: its arrays, ground-truth split, body surface, binds.
+struct CharacterCache {
+  std::string name, subset;
+  at::Tensor V, F, joints, gt_mask, gt_weights;
+  std::vector<uint8_t> mask;  // ground-truth apparel mask, 1 = apparel
+  MatrixX2i E;                // unique edges, for ELS
+  std::vector<int64_t> body_vertices, apparel_vertices;
+  MatrixX3i body_faces;  // faces with three ground-truth body vertices, numbered in body_vertices
+  bool penetration = false;
+  std::map<std::string, BoundCharacter> binds;
+  std::optional<SegmentationScores> segmentation;
+};
+
+std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
+                                               const std::string& subset) {
+  const CharacterData data = reader.read_character(name);
+  auto c = std::make_unique<CharacterCache>();
+  c->name = name;
+  c->subset = subset;
+  const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
+  c->V = float_tensor(data.mesh.V.data(), {N, 3});
+  c->F = at::from_blob(const_cast<int32_t*>(data.mesh.F.data()), {data.mesh.F.rows(), 3}, at::kInt).to(at::kLong);
+  c->joints = float_tensor(data.skeleton.rest_joints.data(), {J, 3});
+  c->mask = data.apparel_mask;
+  c->gt_mask = at::from_blob(c->mask.data(), {N}, at::kByte).to(at::kBool);
+  c->gt_weights = float_tensor(data.body_weights.data(), {N, J});
+  c->E = unique_edges(data.mesh.F);
+  std::vector<int32_t> body_index(N, -1);
+  for (int64_t i = 0; i < N; ++i) {
+    if (c->mask[i]) {
+      c->apparel_vertices.push_back(i);
+    } else {
+      body_index[i] = static_cast<int32_t>(c->body_vertices.size());
+      c->body_vertices.push_back(i);
+    }
+  }
+  std::vector<int32_t> faces;
+  for (int f = 0; f < data.mesh.num_faces(); ++f) {
+    const int32_t a = body_index[data.mesh.F(f, 0)], b = body_index[data.mesh.F(f, 1)],
+                  d = body_index[data.mesh.F(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
+  }
+  c->body_faces = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+  c->penetration = !c->apparel_vertices.empty() && c->body_faces.rows() > 0;
+  return c;
+}
+
+// Penetration of the frame's apparel vertices into its body (both from `pred`, split by the GT mask).
+std::optional<Penetration> frame_penetration(const CharacterCache& c, const MatrixX3f& pred) {
+  if (!c.penetration) return std::nullopt;
+  MatrixX3f body(static_cast<Eigen::Index>(c.body_vertices.size()), 3);
+  for (size_t i = 0; i < c.body_vertices.size(); ++i) body.row(i) = pred.row(c.body_vertices[i]);
+  MatrixX3f apparel(static_cast<Eigen::Index>(c.apparel_vertices.size()), 3);
+  for (size_t i = 0; i < c.apparel_vertices.size(); ++i) apparel.row(i) = pred.row(c.apparel_vertices[i]);
+  try {
+    const WindingNumberTree tree(body, c.body_faces);
+    return penetration(apparel, tree);
+  } catch (const Error&) {
+    return std::nullopt;  // a degenerate predicted body surface: no penetration figure for this frame
+  }
+}
+
+using Key = std::tuple<std::string, std::string, std::string>;  // (method or character, protocol, subset)
+
+// Accumulators for every table row and per-character entry, and the rollout curves.
+struct Accumulators {
+  std::map<Key, ScoreAccumulator> rows;
+  std::map<Key, ScoreAccumulator> characters;  // (character, method, protocol)
+  std::map<std::pair<std::string, std::string>, std::pair<std::vector<double>, std::vector<int>>> curves;
+};
+
+// Scores the frames of one clip for one method and protocol. `frames` yields (pred (N, 3), gt frame).
+class ClipScorer {
+ public:
+  ClipScorer(Accumulators& acc, const CharacterCache& c, const std::string& method, const std::string& protocol,
+             bool with_penetration, bool per_character)
+      : c_(c), with_penetration_(with_penetration) {
+    row_ = &acc.rows[{method, protocol, c.subset}];
+    row_->begin_clip();
+    if (per_character) {
+      character_ = &acc.characters[{c.name, method, protocol}];
+      character_->begin_clip();
+    }
+  }
+  ~ClipScorer() {
+    row_->end_clip();
+    if (character_) character_->end_clip();
+  }
+  // Adds a frame and returns its PMD_a (cm; NaN without apparel).
+  double add(const at::Tensor& pred_tensor, const MatrixX3f& gt) {
+    const MatrixX3f pred = to_matrix(pred_tensor);
+    std::optional<Penetration> pen;
+    if (with_penetration_) pen = frame_penetration(c_, pred);
+    row_->add_frame(pred, gt, c_.mask, c_.E, pen ? &*pen : nullptr);
+    if (character_) character_->add_frame(pred, gt, c_.mask, c_.E, pen ? &*pen : nullptr);
+    return point_mesh_distance_cm(pred, gt, &c_.mask, 1);
+  }
+
+ private:
+  const CharacterCache& c_;
+  bool with_penetration_;
+  ScoreAccumulator* row_ = nullptr;
+  ScoreAccumulator* character_ = nullptr;
+};
+
+BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
+  BindOptions o;
+  if (bind == "gt_weights") {
+    o.apparel_mask = c.gt_mask;
+    o.weights = c.gt_weights;
+  } else if (bind == "predicted") {
+    o.all_vertex_weights = true;
+  } else {
+    o.apparel_mask = c.gt_mask;
+    if (bind == "gt_mask_no_geodesic") o.skinning_variant = SkinningVariant::kNoGeodesic;
+    if (bind == "gt_mask_sorted") o.skinning_variant = SkinningVariant::kSortByGeodesic;
+  }
+  return o;
+}
+
+MatrixX3f frame_of(const MatrixX3f& all, int64_t t, int64_t N) { return all.middleRows(t * N, N); }
+
+std::vector<MethodScores> collect_rows(const Accumulators& acc) {
+  std::vector<MethodScores> rows;
+  for (const auto& [key, a] : acc.rows) rows.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), a.result()});
+  // Order rows by the method order of evaluation_methods(), then protocol, then subset.
+  const std::vector<std::string> order = evaluation_methods();
+  const auto rank = [&](const std::string& m) {
+    const auto it = std::find(order.begin(), order.end(), m);
+    return it == order.end() ? order.size() : static_cast<size_t>(it - order.begin());
+  };
+  std::stable_sort(rows.begin(), rows.end(), [&](const MethodScores& a, const MethodScores& b) {
+    return std::make_tuple(rank(a.method), a.protocol, a.subset) < std::make_tuple(rank(b.method), b.protocol, b.subset);
+  });
+  return rows;
+}
+
+void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::unique_ptr<CharacterCache>>& cache) {
+  result.rows = collect_rows(acc);
+  std::map<std::string, std::pair<SegmentationScores, int>> seg;
+  for (const auto& c : cache) {
+    CharacterScores cs;
+    cs.character = c->name;
+    cs.subset = c->subset;
+    cs.num_vertices = static_cast<int>(c->mask.size());
+    cs.num_apparel = static_cast<int>(c->apparel_vertices.size());
+    if (c->segmentation) {
+      cs.segmentation = *c->segmentation;
+      auto& s = seg[c->subset];
+      s.first.iou += cs.segmentation.iou, s.first.f1 += cs.segmentation.f1;
+      s.first.precision += cs.segmentation.precision, s.first.recall += cs.segmentation.recall;
+      ++s.second;
+    }
+    for (const auto& [key, a] : acc.characters) {
+      if (std::get<0>(key) == c->name) cs.scores[std::get<1>(key)][std::get<2>(key)] = a.result();
+    }
+    result.characters.push_back(std::move(cs));
+  }
+  for (auto& [subset, s] : seg) {
+    SegmentationScores mean = s.first;
+    mean.iou /= s.second, mean.f1 /= s.second, mean.precision /= s.second, mean.recall /= s.second;
+    result.segmentation[subset] = mean;
+  }
+  for (const auto& [key, curve] : acc.curves) {
+    RolloutCurve rc;
+    rc.subset = key.first;
+    rc.method = key.second;
+    rc.clips = curve.second;
+    for (size_t k = 0; k < curve.first.size(); ++k)
+      rc.pmd_a.push_back(curve.second[k] > 0 ? curve.first[k] / curve.second[k] : std::nan(""));
+    result.curves.push_back(std::move(rc));
+  }
+}
+
+std::vector<std::unique_ptr<DatasetReader>> open_shards(const std::vector<std::string>& shards) {
+  std::vector<std::unique_ptr<DatasetReader>> readers;
+  for (const std::string& shard : shards) {
+    readers.push_back(std::make_unique<DatasetReader>(shard));
+    AMT_CHECK(readers.back()->joint_names() == readers.front()->joint_names(), shard, ": skeleton: expected the ",
+              readers.front()->joint_names().size(), " joints of ", shards.front(), ", found ",
+              readers.back()->joint_names().size(), " different ones");
+  }
+  return readers;
+}
+
+}  // namespace
+
+// === Methods
+
+std::vector<std::string> evaluation_methods() {
+  std::vector<std::string> keys;
+  for (const MethodSpec& m : method_specs()) keys.push_back(m.key);
+  return keys;
+}
+
+std::string method_label(const std::string& method) {
+  static const std::map<std::string, std::string> labels = {
+      {"skinning_baseline", "Skinning baseline (LBS, GT body weights)"},
+      {"lbs_predicted", "LBS, predicted weights (body module only)"},
+      {"body_apparel", "Body + apparel modules"},
+      {"full", "Full model"},
+      {"full_gt_mask", "Full model + GT mask (G + attention)"},
+      {"no_geodesic", "w/o G (GT mask)"},
+      {"sort_by_geodesic", "Sort by G (GT mask)"},
+      {"predictions", "Predictions file"},
+  };
+  const auto it = labels.find(method);
+  return it == labels.end() ? method : it->second;
+}
+
+const MethodScores* EvaluationResult::find(const std::string& method, const std::string& protocol,
+                                           const std::string& subset) const {
+  for (const MethodScores& r : rows)
+    if (r.method == method && r.protocol == protocol && r.subset == subset) return &r;
+  return nullptr;
+}
+
+// === Evaluation
+
+EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std::string>& shards,
+                                const EvaluateOptions& options) {
+  const auto start = Clock::now();
+  AMT_CHECK(options.paper || options.rollout, "eval: protocol: expected paper, rollout or both, found none");
+  AMT_CHECK(options.window > kHistory, "eval: window: expected more than ", kHistory, " frames, found ", options.window);
+  EvaluationResult result;
+  result.shards = shards;
+  result.model_dir = bundle.dir;
+  result.options = options;
+
+  // Methods to run.
+  std::vector<MethodSpec> methods;
+  const std::vector<std::string> all = evaluation_methods();
+  for (const std::string& m : options.methods)
+    AMT_CHECK(std::find(all.begin(), all.end(), m) != all.end(), "eval: method: expected one of skinning_baseline, ",
+              "lbs_predicted, body_apparel, full, full_gt_mask, no_geodesic, sort_by_geodesic, found '", m, "'");
+  for (const MethodSpec& spec : method_specs()) {
+    if (!options.methods.empty() &&
+        std::find(options.methods.begin(), options.methods.end(), spec.key) == options.methods.end())
+      continue;
+    if (spec.key == "no_geodesic" && bundle.skinning_no_geodesic.is_empty()) {
+      result.notes.push_back(std::string("Table 4: ") + kSkinningNoGeodesicCheckpoint +
+                             " is not in the model folder; the w/o G variant was not evaluated.");
+      continue;
+    }
+    if (spec.key == "sort_by_geodesic" && bundle.skinning_sorted.is_empty()) {
+      result.notes.push_back(std::string("Table 4: ") + kSkinningSortedCheckpoint +
+                             " is not in the model folder; the sort-by-G variant was not evaluated.");
+      continue;
+    }
+    methods.push_back(spec);
+  }
+
+  auto readers = open_shards(shards);
+  check_bundle_skeleton(bundle, readers.front()->joint_names(), shards.front());
+  const std::vector<EvalClip> clips = held_out_clips(readers, options.max_clips);
+  AMT_CHECK(!clips.empty(), shards.front(), (shards.size() > 1 ? " (and the other shards)" : ""),
+            ": no held-out clips (expected clips of test characters, or test clips of train characters)");
+  const int64_t J = bundle.num_joints();
+
+  Accumulators acc;
+  std::vector<std::unique_ptr<CharacterCache>> cache;
+  std::map<std::pair<int, std::string>, CharacterCache*> cache_index;
+  int short_clips = 0;
+  Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
+  progress.update(0);
+  for (size_t k = 0; k < clips.size(); ++k) {
+    const EvalClip& clip = clips[k];
+    const DatasetReader& reader = *readers[clip.shard];
+    CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
+    if (!c) {
+      cache.push_back(load_character(reader, clip.info.character, clip.subset));
+      c = cache.back().get();
+    }
+    ++result.clips[clip.subset];
+    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c->mask.size());
+    const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
+    const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
+    const at::Tensor gt_tensor = float_tensor(gt_all.data(), {T, N, 3});
+    if (options.paper && T < options.window) ++short_clips;
+
+    for (const MethodSpec& m : methods) {
+      auto bound = c->binds.find(m.bind);
+      if (bound == c->binds.end())
+        bound = c->binds.emplace(m.bind, bind_character(bundle, c->V, c->F, c->joints, bind_options_for(m.bind, *c)))
+                    .first;
+      const BoundCharacter& b = bound->second;
+      if (m.bind == "predicted" && !c->segmentation)
+        c->segmentation = segmentation_scores(b.apparel_prob, c->gt_mask);
+      const bool per_character = m.key == "skinning_baseline" || m.key == "full";
+      const at::Tensor gt_apparel = gt_tensor.index_select(1, b.apparel_ids);  // (T, N_a, 3)
+
+      if (options.paper && T >= options.window) {
+        ClipScorer scorer(acc, *c, m.key, kPaper, options.penetration, per_character);
+        PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages);
+        for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
+          stepper.reset(gt_apparel.narrow(0, s, kHistory));
+          for (int64_t t = s + kHistory; t < s + options.window; ++t)
+            scorer.add(stepper.step(motion[t]), frame_of(gt_all, t, N));
+        }
+      }
+      if (options.rollout) {
+        ClipScorer scorer(acc, *c, m.key, kRollout, options.penetration, per_character);
+        PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
+        const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);
+        for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
+        auto& curve = acc.curves[{c->subset, m.key}];
+        for (int64_t t = 0; t < T; ++t) {
+          const double pmd_a = scorer.add(stepper.step(motion[t]), frame_of(gt_all, t, N));
+          if (curve.first.size() <= static_cast<size_t>(t)) curve.first.push_back(0.0), curve.second.push_back(0);
+          if (pmd_a == pmd_a) curve.first[t] += pmd_a, curve.second[t] += 1;
+        }
+      }
+    }
+    progress.update(static_cast<int>(k + 1));
+  }
+  if (short_clips > 0)
+    result.notes.push_back(std::to_string(short_clips) + " clip(s) shorter than the " + std::to_string(options.window) +
+                           "-frame window were left out of the paper protocol.");
+  finish(result, acc, cache);
+  // Only the curves of the rollout methods that matter for the plot: keep all, the report picks.
+  result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, const std::string& predictions,
+                                      const EvaluateOptions& options) {
+  const auto start = Clock::now();
+  std::error_code error;
+  AMT_CHECK(fs::is_regular_file(predictions, error), predictions,
+            ": no such predictions file (expected an amt-dataset file, e.g. from amt animate --out x.h5)");
+  EvaluationResult result;
+  result.shards = shards;
+  result.predictions = predictions;
+  result.options = options;
+  auto readers = open_shards(shards);
+  const DatasetReader predicted(predictions);
+  AMT_CHECK(predicted.joint_names() == readers.front()->joint_names(), predictions, ": skeleton: expected the ",
+            readers.front()->joint_names().size(), " joints of ", shards.front(), ", found ",
+            predicted.joint_names().size(), " different ones");
+  std::vector<EvalClip> clips;
+  for (EvalClip& clip : held_out_clips(readers, 0))
+    if (predicted.has_clip(clip.info.name)) clips.push_back(std::move(clip));
+  if (options.max_clips > 0 && static_cast<int>(clips.size()) > options.max_clips) clips.resize(options.max_clips);
+  AMT_CHECK(!clips.empty(), predictions, ": no clip in common with the held-out clips of ", shards.front(),
+            " (expected clips of the same names)");
+
+  Accumulators acc;
+  std::vector<std::unique_ptr<CharacterCache>> cache;
+  std::map<std::pair<int, std::string>, CharacterCache*> cache_index;
+  Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
+  for (size_t k = 0; k < clips.size(); ++k) {
+    const EvalClip& clip = clips[k];
+    const DatasetReader& reader = *readers[clip.shard];
+    CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
+    if (!c) {
+      cache.push_back(load_character(reader, clip.info.character, clip.subset));
+      c = cache.back().get();
+    }
+    const ClipInfo p = predicted.clip_info(clip.info.name);
+    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c->mask.size());
+    AMT_CHECK(p.num_frames == T, predictions, ": /clips/", p.name, ": frames: expected ", T,
+              " (the ground truth's), found ", p.num_frames);
+    const CharacterSummary summary = predicted.character_summary(p.character);
+    AMT_CHECK(summary.num_vertices == N, predictions, ": /characters/", p.character, ": vertices: expected ", N,
+              " (the ground truth's ", clip.info.character, "), found ", summary.num_vertices);
+    ++result.clips[clip.subset];
+    const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
+    const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
+    ClipScorer scorer(acc, *c, "predictions", "file", options.penetration, true);
+    auto& curve = acc.curves[{c->subset, "predictions"}];
+    for (int64_t t = 0; t < T; ++t) {
+      const MatrixX3f pred = frame_of(pred_all, t, N);
+      const at::Tensor pred_tensor = at::from_blob(const_cast<float*>(pred.data()), {N, 3}, at::kFloat);
+      const double pmd_a = scorer.add(pred_tensor, frame_of(gt_all, t, N));
+      if (curve.first.size() <= static_cast<size_t>(t)) curve.first.push_back(0.0), curve.second.push_back(0);
+      if (pmd_a == pmd_a) curve.first[t] += pmd_a, curve.second[t] += 1;
+    }
+    progress.update(static_cast<int>(k + 1));
+  }
+  finish(result, acc, cache);
+  result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+// === JSON
+
+std::string evaluation_json(const EvaluationResult& result) {
+  using Json = nlohmann::json;
+  const auto number = [](double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); };
+  const auto scores = [&](const MotionScores& s) {
+    return Json{{"pmd_cm", number(s.pmd)},
+                {"pmd_a_cm", number(s.pmd_a)},
+                {"pmd_b_cm", number(s.pmd_b)},
+                {"els", number(s.els)},
+                {"penetration_share", number(s.penetration_share)},
+                {"penetration_depth_cm", number(s.penetration_depth_cm)},
+                {"clips", s.clips},
+                {"frames", s.frames}};
+  };
+  const auto seg = [&](const SegmentationScores& s) {
+    return Json{{"iou", number(s.iou)}, {"f1", number(s.f1)}, {"precision", number(s.precision)},
+                {"recall", number(s.recall)}};
+  };
+  Json j;
+  j["format"] = "amt-eval";
+  j["version"] = 1;
+  j["shards"] = result.shards;
+  j["model"] = result.model_dir;
+  if (!result.predictions.empty()) j["predictions"] = result.predictions;
+  j["options"] = {{"paper", result.options.paper},
+                  {"rollout", result.options.rollout},
+                  {"window", result.options.window},
+                  {"max_clips", result.options.max_clips},
+                  {"penetration", result.options.penetration},
+                  {"lead_in_frames", kDefaultLeadInFrames}};
+  j["seconds"] = result.seconds;
+  j["clips"] = result.clips;
+  Json rows = Json::array();
+  for (const MethodScores& r : result.rows) {
+    Json row = scores(r.scores);
+    row["method"] = r.method;
+    row["protocol"] = r.protocol;
+    row["subset"] = r.subset;
+    rows.push_back(row);
+  }
+  j["rows"] = rows;
+  Json segmentation = Json::object();
+  for (const auto& [subset, s] : result.segmentation) segmentation[subset] = seg(s);
+  j["segmentation"] = segmentation;
+  Json characters = Json::array();
+  for (const CharacterScores& c : result.characters) {
+    Json cj{{"character", c.character}, {"subset", c.subset}, {"vertices", c.num_vertices},
+            {"apparel_vertices", c.num_apparel}, {"segmentation", seg(c.segmentation)}};
+    Json methods = Json::object();
+    for (const auto& [method, protocols] : c.scores)
+      for (const auto& [protocol, s] : protocols) methods[method][protocol] = scores(s);
+    cj["scores"] = methods;
+    characters.push_back(cj);
+  }
+  j["characters"] = characters;
+  Json curves = Json::array();
+  for (const RolloutCurve& c : result.curves) {
+    Json values = Json::array();
+    for (double v : c.pmd_a) values.push_back(number(v));
+    Json at_frames = Json::object();
+    for (int f : result.options.rollout_frames)
+      if (f >= 1 && f <= static_cast<int>(c.pmd_a.size())) at_frames[std::to_string(f)] = number(c.pmd_a[f - 1]);
+    curves.push_back({{"subset", c.subset}, {"method", c.method}, {"pmd_a_cm", values}, {"clips", c.clips},
+                      {"pmd_a_cm_at_frame", at_frames}});
+  }
+  j["rollout_curves"] = curves;
+  j["notes"] = result.notes;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace amt

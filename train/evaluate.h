@@ -1,0 +1,128 @@
+#pragma once
+// Evaluation of a trained model on a dataset's held-out data (DESIGN.md section 5, paper 5.3 and
+// Tables 2-4): every method runs through the one forward path of train/pipeline.h, and is scored with
+// data_tools/metrics.h (PMD, PMD_a, PMD_b in cm, ELS, penetration share and depth; vertex -> frame ->
+// clip averaging of ScoreAccumulator) in two protocols:
+//   "paper"    windows of `window` (10) frames at a stride of window - 3, the first 3 apparel states
+//              from ground truth, metrics over the window - 3 predicted frames (every frame from the
+//              4th on is predicted exactly once);
+//   "rollout"  the whole clip, apparel started from the rest pose with the motion blended in from the
+//              rest pose (motion_lead_in, kDefaultLeadInFrames), as a user runs it.
+// Two subsets: "held-out characters" (clips of characters whose split is test) and "held-out clips"
+// (clips whose split is test, of characters whose split is train).
+#include <map>
+#include <string>
+#include <vector>
+
+#include "data_tools/metrics.h"
+#include "train/pipeline.h"
+
+namespace amt {
+
+// === Options
+
+/// Methods, by key (paper Tables 2-4):
+///   skinning_baseline  every vertex, apparel included, skinned with the ground-truth body weights;
+///   lbs_predicted      every vertex skinned with predicted weights ("body module only");
+///   body_apparel       B̂ and Â tiled, no refiner;
+///   full               the full model (predicted mask);
+///   full_gt_mask       the full model with the ground-truth apparel mask (Table 4's "G + attention");
+///   no_geodesic, sort_by_geodesic  the full model, ground-truth mask, with the ablation skinning
+///                      predictors of Table 4 (only when their checkpoints are in the model folder).
+std::vector<std::string> evaluation_methods();
+
+/// Human-readable label of a method key ("Full model (GT mask)").
+std::string method_label(const std::string& method);
+
+/// What evaluate_model runs.
+struct EvaluateOptions {
+  /// Run the "paper" and / or the "rollout" protocol.
+  bool paper = true, rollout = true;
+  /// Evaluate at most this many clips per subset (0: all), the first in file order.
+  int max_clips = 0;
+  /// Methods to run (keys of evaluation_methods(); empty: all that the bundle supports).
+  std::vector<std::string> methods;
+  /// Paper protocol window T; the first 3 frames of each window are ground-truth history.
+  int window = 10;
+  /// Rollout frames (1-based: the k-th predicted frame of a clip) at which PMD_a is reported.
+  std::vector<int> rollout_frames = {10, 100, 300};
+  /// Measure penetration (a winding-number tree of the predicted body per frame and method).
+  bool penetration = true;
+  /// Print progress (clips done / total, rate, ETA) on stderr.
+  bool progress = true;
+};
+
+// === Results
+
+/// One table row: a method's scores in one protocol on one subset.
+struct MethodScores {
+  std::string method, protocol, subset;
+  MotionScores scores;
+};
+
+/// Scores of one character (all its evaluated clips).
+struct CharacterScores {
+  std::string character, subset;
+  int num_vertices = 0, num_apparel = 0;
+  /// Predicted mask (p̂ > 0.5) against the ground truth.
+  SegmentationScores segmentation;
+  /// method -> protocol -> scores, for the skinning baseline and the full model.
+  std::map<std::string, std::map<std::string, MotionScores>> scores;
+};
+
+/// PMD_a (cm) of the full model per rollout frame, averaged over the clips that are that long.
+struct RolloutCurve {
+  std::string subset, method;
+  /// pmd_a[k] is the mean PMD_a of predicted frame k + 1; clips[k] how many clips reached it.
+  std::vector<double> pmd_a;
+  std::vector<int> clips;
+};
+
+/// Everything an evaluation measured.
+struct EvaluationResult {
+  /// Dataset shards, model folder (or the predictions file) evaluated.
+  std::vector<std::string> shards;
+  std::string model_dir, predictions;
+  /// Rows of every method, protocol and subset that had clips.
+  std::vector<MethodScores> rows;
+  /// subset -> segmentation scores averaged over its characters.
+  std::map<std::string, SegmentationScores> segmentation;
+  std::vector<CharacterScores> characters;
+  std::vector<RolloutCurve> curves;
+  /// subset -> number of clips evaluated.
+  std::map<std::string, int> clips;
+  /// Things the report must say (missing ablation checkpoints, clips too short for a window, ...).
+  std::vector<std::string> notes;
+  /// The options used.
+  EvaluateOptions options;
+  /// Wall time (seconds).
+  double seconds = 0;
+
+  /// The row of (method, protocol, subset), or null.
+  const MethodScores* find(const std::string& method, const std::string& protocol, const std::string& subset) const;
+};
+
+/// Subset names.
+inline constexpr const char* kHeldOutCharacters = "held-out characters";
+inline constexpr const char* kHeldOutClips = "held-out clips";
+
+// === Evaluation
+
+/// Evaluates `bundle` on the held-out clips of the shards (resolve_shards). Throws amt::Error for a
+/// dataset whose skeleton differs from the model's, unknown method keys, or no held-out clips at all.
+/// Deterministic for a given thread count.
+EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std::string>& shards,
+                                const EvaluateOptions& options);
+
+/// Scores a dataset file of predicted vertices (e.g. written by `amt animate --out x.h5`) against the
+/// ground truth of the shards: every held-out clip of the shards that the predictions file has (same
+/// clip name, same character vertex count and frame count) is scored over all its frames as method
+/// "predictions", protocol "file". Throws amt::Error for a missing file, mismatched shapes or no clip
+/// in common.
+EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, const std::string& predictions,
+                                      const EvaluateOptions& options);
+
+/// The result as JSON text (NaN as null): rows, segmentation, characters, curves, notes.
+std::string evaluation_json(const EvaluationResult& result);
+
+}  // namespace amt

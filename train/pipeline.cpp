@@ -1,0 +1,383 @@
+#include "train/pipeline.h"
+
+#include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
+#include <torch/utils.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <filesystem>
+#include <sstream>
+
+#include "data_tools/error.h"
+#include "data_tools/geodesic.h"
+#include "data_tools/lbs_torch.h"
+#include "data_tools/mesh.h"
+#include "models/edge_conv.h"
+#include "train/module_options.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* variant_name(SkinningVariant variant) {
+  switch (variant) {
+    case SkinningVariant::kGeodesicAttention: return "geodesic attention";
+    case SkinningVariant::kNoGeodesic: return "no geodesic";
+    case SkinningVariant::kSortByGeodesic: return "sort by geodesic";
+  }
+  return "?";
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::ostringstream out;
+  for (size_t i = 0; i < names.size() && i < 4; ++i) out << (i ? ", " : "") << names[i];
+  if (names.size() > 4) out << ", ...";
+  return out.str();
+}
+
+// Builds a network from a checkpoint's stored options, loads its tensors, freezes it for inference.
+template <typename Net, typename Options>
+Net load_network(const std::string& path, ModuleKind kind, CheckpointInfo& info) {
+  info = read_checkpoint_info(path, kind);
+  Options options;
+  options_from_json(info.options_json, path, options);
+  Net net(options);
+  load_checkpoint(path, kind, *net, nullptr);
+  net->eval();
+  for (auto& p : net->parameters()) p.set_requires_grad(false);
+  return net;
+}
+
+void check_joints_option(const std::string& path, int64_t num_joints, int64_t J) {
+  AMT_CHECK(num_joints == J, path, ": options.num_joints: expected ", J, " (the skeleton's joint names), found ",
+            num_joints);
+}
+
+MatrixX3f to_matrix3f(const at::Tensor& t) {
+  const at::Tensor c = t.to(at::kFloat).contiguous();
+  return Eigen::Map<const MatrixX3f>(c.data_ptr<float>(), c.size(0), 3);
+}
+
+MatrixX3i to_matrix3i(const at::Tensor& t) {
+  const at::Tensor c = t.to(at::kInt).contiguous();
+  return Eigen::Map<const MatrixX3i>(c.data_ptr<int32_t>(), c.size(0), 3);
+}
+
+at::Tensor from_matrix(const MatrixXfR& m) {
+  return at::from_blob(const_cast<float*>(m.data()), {m.rows(), m.cols()}, at::kFloat).clone();
+}
+
+at::Tensor edge_tensor(const MatrixX2i& E) {
+  if (E.rows() == 0) return at::zeros({0, 2}, at::kLong);
+  return at::from_blob(const_cast<int32_t*>(E.data()), {E.rows(), 2}, at::kInt).to(at::kLong);
+}
+
+// Geodesic distances (N_s, J) over the sub-mesh of the vertices `ids` and the faces whose three corners
+// are among them, exactly as train/samples.cpp computes G_body.
+at::Tensor submesh_geodesics(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints, const at::Tensor& ids,
+                             const char* what) {
+  const int64_t N = V.rows(), N_s = ids.size(0);
+  std::vector<int32_t> index(N, -1);
+  MatrixX3f V_s(N_s, 3);
+  const int64_t* id = ids.data_ptr<int64_t>();
+  for (int64_t i = 0; i < N_s; ++i) {
+    index[id[i]] = static_cast<int32_t>(i);
+    V_s.row(i) = V.row(id[i]);
+  }
+  std::vector<int32_t> faces;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const int32_t a = index[F(f, 0)], b = index[F(f, 1)], d = index[F(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
+  }
+  AMT_CHECK(!faces.empty(), "bind: faces: the skinning predictor needs faces between ", what,
+            " vertices, found none (", N_s, " ", what, " vertices)");
+  const MatrixX3i F_s = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+  return from_matrix(geodesic_distances(V_s, F_s, joints));
+}
+
+}  // namespace
+
+// === Model bundle
+
+SkinningPredictor ModelBundle::skinning_for(SkinningVariant variant) const {
+  const SkinningPredictor& net = variant == SkinningVariant::kGeodesicAttention ? skinning
+                                 : variant == SkinningVariant::kNoGeodesic      ? skinning_no_geodesic
+                                                                                : skinning_sorted;
+  const char* file = variant == SkinningVariant::kGeodesicAttention ? kSkinningCheckpoint
+                     : variant == SkinningVariant::kNoGeodesic      ? kSkinningNoGeodesicCheckpoint
+                                                                    : kSkinningSortedCheckpoint;
+  AMT_CHECK(!net.is_empty(), (dir.empty() ? std::string("model") : dir), "/", file, ": no such checkpoint (the ",
+            variant_name(variant), " skinning variant was not loaded)");
+  return net;
+}
+
+ModelBundle load_model_bundle(const std::string& dir) {
+  std::error_code error;
+  AMT_CHECK(fs::is_directory(dir, error), dir, ": no such model folder (expected a folder with ", kSegmenterCheckpoint,
+            ", ", kSkinningCheckpoint, ", ", kApparelCheckpoint, ", ", kRefinerCheckpoint, ")");
+  ModelBundle bundle;
+  bundle.dir = dir;
+  const auto path_of = [&](const char* file) { return (fs::path(dir) / file).string(); };
+  const auto require = [&](const char* file, ModuleKind kind) {
+    const std::string path = path_of(file);
+    AMT_CHECK(fs::is_regular_file(path, error), path, ": no such checkpoint (train it with amt train ",
+              module_kind_name(kind), ")");
+    return path;
+  };
+  std::string first_path;
+  const auto check_skeleton = [&](const std::string& path, const CheckpointInfo& info) {
+    if (first_path.empty()) {
+      first_path = path;
+      bundle.joint_names = info.joint_names;
+      AMT_CHECK(!bundle.joint_names.empty(), path, ": joint_names: expected at least one joint, found none");
+      return;
+    }
+    AMT_CHECK(info.joint_names == bundle.joint_names, path, ": skeleton: trained on ", info.joint_names.size(),
+              " joints (", joined(info.joint_names), "), but ", first_path, " on ", bundle.joint_names.size(), " (",
+              joined(bundle.joint_names), "): all modules of a model must share one skeleton");
+  };
+
+  CheckpointInfo info;
+  std::string path = require(kSegmenterCheckpoint, ModuleKind::kSegmenter);
+  bundle.segmenter = load_network<ApparelSegmenter, ApparelSegmenterOptions>(path, ModuleKind::kSegmenter, info);
+  check_skeleton(path, info);
+  bundle.infos.push_back(info);
+  const int64_t J = bundle.num_joints();
+
+  path = require(kSkinningCheckpoint, ModuleKind::kSkinning);
+  bundle.skinning = load_network<SkinningPredictor, SkinningPredictorOptions>(path, ModuleKind::kSkinning, info);
+  check_skeleton(path, info);
+  check_joints_option(path, bundle.skinning->options.num_joints, J);
+  AMT_CHECK(bundle.skinning->options.variant == SkinningVariant::kGeodesicAttention, path,
+            ": options.variant: expected the geodesic attention variant, found ",
+            variant_name(bundle.skinning->options.variant));
+  bundle.infos.push_back(info);
+
+  path = require(kApparelCheckpoint, ModuleKind::kApparel);
+  bundle.apparel = load_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
+  check_skeleton(path, info);
+  check_joints_option(path, bundle.apparel->options.num_joints, J);
+  bundle.infos.push_back(info);
+
+  path = require(kRefinerCheckpoint, ModuleKind::kRefiner);
+  bundle.refiner = load_network<JointRefiner, JointRefinerOptions>(path, ModuleKind::kRefiner, info);
+  check_skeleton(path, info);
+  bundle.infos.push_back(info);
+
+  const auto optional_variant = [&](const char* file, SkinningVariant variant, SkinningPredictor& out) {
+    const std::string p = path_of(file);
+    if (!fs::exists(p, error)) return;
+    CheckpointInfo variant_info;
+    out = load_network<SkinningPredictor, SkinningPredictorOptions>(p, ModuleKind::kSkinning, variant_info);
+    check_skeleton(p, variant_info);
+    check_joints_option(p, out->options.num_joints, J);
+    AMT_CHECK(out->options.variant == variant, p, ": options.variant: expected the ", variant_name(variant),
+              " variant (from the file name), found ", variant_name(out->options.variant));
+  };
+  optional_variant(kSkinningNoGeodesicCheckpoint, SkinningVariant::kNoGeodesic, bundle.skinning_no_geodesic);
+  optional_variant(kSkinningSortedCheckpoint, SkinningVariant::kSortByGeodesic, bundle.skinning_sorted);
+  return bundle;
+}
+
+void check_bundle_skeleton(const ModelBundle& bundle, const std::vector<std::string>& joint_names,
+                           const std::string& source) {
+  AMT_CHECK(joint_names == bundle.joint_names, source, ": skeleton: the model ",
+            (bundle.dir.empty() ? std::string() : "(" + bundle.dir + ") "), "was trained on ", bundle.joint_names.size(),
+            " joints (", joined(bundle.joint_names), "), this has ", joint_names.size(), " (", joined(joint_names), ")");
+}
+
+// === Bind
+
+BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F,
+                              const at::Tensor& joints, const BindOptions& options) {
+  AMT_CHECK(V.defined() && V.dim() == 2 && V.size(1) == 3 && V.size(0) > 0,
+            "bind: V: expected (N, 3) rest positions with N > 0, found ", (V.defined() ? V.sizes() : at::IntArrayRef{}));
+  AMT_CHECK(F.defined() && F.dim() == 2 && F.size(1) == 3, "bind: F: expected (F, 3) faces, found ",
+            (F.defined() ? F.sizes() : at::IntArrayRef{}));
+  AMT_CHECK(joints.defined() && joints.dim() == 2 && joints.size(1) == 3 && joints.size(0) == bundle.num_joints(),
+            "bind: joints: expected (", bundle.num_joints(), ", 3) rest joints (the model's skeleton), found ",
+            (joints.defined() ? joints.sizes() : at::IntArrayRef{}));
+  const int64_t N = V.size(0), J = joints.size(0);
+  if (F.size(0) > 0) {
+    const int64_t lo = F.min().item<int64_t>(), hi = F.max().item<int64_t>();
+    AMT_CHECK(lo >= 0 && hi < N, "bind: F: expected vertex indices in [0, ", N, "), found [", lo, ", ", hi, "]");
+  }
+  torch::NoGradGuard no_grad;
+  BoundCharacter c;
+  c.V = V.to(at::kFloat).contiguous();
+  c.faces = F.to(at::kLong).contiguous();
+  c.joints = joints.to(at::kFloat).contiguous();
+  const MatrixX3f V_e = to_matrix3f(c.V), joints_e = to_matrix3f(c.joints);
+  const MatrixX3i F_e = to_matrix3i(c.faces);
+  c.edges = edge_tensor(unique_edges(F_e));
+
+  // Segmentation (eq. 2) and the mask in use.
+  c.apparel_prob = bundle.segmenter.ptr()->probabilities(c.V).contiguous();
+  if (options.apparel_mask.defined()) {
+    AMT_CHECK(options.apparel_mask.dim() == 1 && options.apparel_mask.size(0) == N,
+              "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());
+    c.apparel_mask = options.apparel_mask.to(at::kBool).contiguous();
+  } else {
+    c.apparel_mask = c.apparel_prob.gt(0.5);
+  }
+  c.refiner_prob = c.apparel_mask.to(at::kFloat);
+  c.apparel_ids = at::nonzero(c.apparel_mask).flatten().contiguous();
+  c.body_ids = at::nonzero(c.apparel_mask.logical_not()).flatten().contiguous();
+  c.body_edges = induced_edges(N, c.edges, c.body_ids);
+  c.apparel_edges = induced_edges(N, c.edges, c.apparel_ids);
+  c.apparel_neighbors = neighbor_table(c.apparel_ids.size(0), c.apparel_edges);
+
+  // Skinning weights (eq. 5-7) of the body, and optionally of every vertex.
+  if (options.weights.defined()) {
+    AMT_CHECK(options.weights.dim() == 2 && options.weights.size(0) == N && options.weights.size(1) == J,
+              "bind: weights: expected (", N, ", ", J, "), found ", options.weights.sizes());
+    c.vertex_weights = options.weights.to(at::kFloat).contiguous();
+    c.body_weights = c.vertex_weights.index_select(0, c.body_ids);
+    return c;
+  }
+  SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
+  if (c.body_ids.size(0) > 0) {
+    c.G_body = submesh_geodesics(V_e, F_e, joints_e, c.body_ids, "body");
+    c.body_weights = skinning->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body).contiguous();
+  } else {
+    c.body_weights = at::zeros({0, J}, at::kFloat);
+  }
+  if (options.all_vertex_weights) {
+    // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body
+    // only" and "body + apparel" skin the body identically (Table 3).
+    AMT_CHECK(F.size(0) > 0, "bind: faces: the skinning predictor needs faces, found none");
+    const at::Tensor G_all = from_matrix(geodesic_distances(V_e, F_e, joints_e));
+    c.vertex_weights = skinning->forward(c.V, c.joints, G_all).contiguous();
+    if (c.body_ids.size(0) > 0) c.vertex_weights.index_copy_(0, c.body_ids, c.body_weights);
+  }
+  return c;
+}
+
+// === Starting a motion
+
+at::Tensor rest_apparel_history(const BoundCharacter& character) {
+  return character.V.index_select(0, character.apparel_ids).unsqueeze(0).expand({3, -1, -1}).contiguous();
+}
+
+at::Tensor motion_lead_in(const at::Tensor& first, const at::Tensor& rest_joints, int64_t frames) {
+  AMT_CHECK(first.dim() == 3 && first.size(1) == 3 && first.size(2) == 4, "motion lead-in: first frame: expected ",
+            "(J, 3, 4) joint transforms, found ", first.sizes());
+  const int64_t J = first.size(0);
+  AMT_CHECK(rest_joints.dim() == 2 && rest_joints.size(0) == J && rest_joints.size(1) == 3,
+            "motion lead-in: rest joints: expected (", J, ", 3), found ", rest_joints.sizes());
+  AMT_CHECK(frames >= 0, "motion lead-in: frames: expected >= 0, found ", frames);
+  const at::Tensor T0 = first.to(at::kFloat).contiguous(), J0 = rest_joints.to(at::kFloat).contiguous();
+  at::Tensor out = at::empty({frames, J, 3, 4}, at::kFloat);
+  const float* t0 = T0.data_ptr<float>();
+  const float* j0 = J0.data_ptr<float>();
+  float* dst = out.data_ptr<float>();
+  for (int64_t j = 0; j < J; ++j) {
+    const Eigen::Map<const Eigen::Matrix<float, 3, 4, Eigen::RowMajor>> M(t0 + 12 * j);
+    Eigen::Matrix3f R = M.leftCols<3>();
+    const Eigen::Quaternionf q = Eigen::Quaternionf(R).normalized();
+    const Eigen::Vector3f rest(j0[3 * j], j0[3 * j + 1], j0[3 * j + 2]);
+    const Eigen::Vector3f target = M.col(3);
+    for (int64_t k = 0; k < frames; ++k) {
+      const float s = static_cast<float>(k + 1) / static_cast<float>(frames + 1);
+      Eigen::Map<Eigen::Matrix<float, 3, 4, Eigen::RowMajor>> D(dst + 12 * (k * J + j));
+      D.leftCols<3>() = Eigen::Quaternionf::Identity().slerp(s, q).toRotationMatrix();
+      D.col(3) = (1.0f - s) * rest + s * target;
+    }
+  }
+  return out;
+}
+
+// === Stepping
+
+const char* pipeline_stages_name(PipelineStages stages) {
+  switch (stages) {
+    case PipelineStages::kBodyOnly: return "body_only";
+    case PipelineStages::kBodyApparel: return "body_apparel";
+    case PipelineStages::kFull: return "full";
+  }
+  return "?";
+}
+
+PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
+                                 PipelineStages stages)
+    : bundle_(bundle), character_(character), stages_(stages) {
+  if (stages_ == PipelineStages::kBodyOnly) {
+    AMT_CHECK(character_.vertex_weights.defined(), "pipeline: body only needs weights of every vertex (bind with ",
+              "BindOptions::all_vertex_weights or BindOptions::weights)");
+    lbs_rest_ = character_.V;
+    lbs_weights_ = character_.vertex_weights;
+  } else {
+    lbs_rest_ = character_.V.index_select(0, character_.body_ids);
+    lbs_weights_ = character_.body_weights;
+  }
+  reset(history);
+}
+
+void PipelineStepper::reset(const at::Tensor& history) {
+  const int64_t N_a = character_.num_apparel();
+  AMT_CHECK(history.defined() && history.dim() == 3 && history.size(0) == 3 && history.size(1) == N_a &&
+                history.size(2) == 3,
+            "pipeline: apparel history: expected (3, ", N_a, ", 3), found ",
+            (history.defined() ? history.sizes() : at::IntArrayRef{}));
+  history_ = history.to(at::kFloat).contiguous();
+  frames_ = 0;
+}
+
+StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, StepTimes* times) {
+  using Clock = std::chrono::steady_clock;
+  const auto seconds = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); };
+  const int64_t J = character_.joints.size(0);
+  AMT_CHECK(joint_transforms.dim() == 3 && joint_transforms.size(0) == J && joint_transforms.size(1) == 3 &&
+                joint_transforms.size(2) == 4,
+            "pipeline: joint transforms: expected (", J, ", 3, 4), found ", joint_transforms.sizes());
+  c10::InferenceMode inference;
+  const auto t0 = Clock::now();
+  const at::Tensor T = joint_transforms.to(at::kFloat).unsqueeze(0);  // (1, J, 3, 4)
+  StepOutput out;
+  const at::Tensor skinned = lbs_rest_.size(0) > 0 ? linear_blend_skinning(lbs_rest_, lbs_weights_, T, character_.joints)
+                                                         .squeeze(0)
+                                                   : at::zeros({0, 3}, at::kFloat);  // eq. (4)
+  ++frames_;
+  const auto t1 = Clock::now();
+  if (stages_ == PipelineStages::kBodyOnly) {
+    out.V_hat = skinned;
+    if (times) *times = StepTimes{seconds(t0, t1), 0.0, 0.0};
+    return out;
+  }
+  out.B_hat = skinned;
+  if (character_.num_apparel() > 0) {
+    out.A_hat = bundle_.apparel.ptr()->step(history_, T.squeeze(0), character_.apparel_neighbors);  // eq. (11)
+    history_ = at::cat({history_.narrow(0, 1, 2), out.A_hat.unsqueeze(0)}, 0);
+  } else {
+    out.A_hat = at::zeros({0, 3}, at::kFloat);
+  }
+  const auto t2 = Clock::now();
+  const at::Tensor tiled = tile_apparel_body(out.A_hat, out.B_hat, character_.apparel_mask);
+  out.V_hat = stages_ == PipelineStages::kFull
+                  ? bundle_.refiner.ptr()->forward(tiled, character_.V, character_.refiner_prob).V_hat  // eq. (16)
+                  : tiled;
+  if (times) *times = StepTimes{seconds(t0, t1), seconds(t1, t2), seconds(t2, Clock::now())};
+  return out;
+}
+
+at::Tensor PipelineStepper::step(const at::Tensor& joint_transforms, StepTimes* times) {
+  return step_detailed(joint_transforms, times).V_hat;
+}
+
+at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
+                        const at::Tensor& joint_transforms, PipelineStages stages) {
+  AMT_CHECK(joint_transforms.dim() == 4, "pipeline: joint transforms: expected (T, J, 3, 4), found ",
+            joint_transforms.sizes());
+  PipelineStepper stepper(bundle, character, history, stages);
+  const int64_t T = joint_transforms.size(0);
+  std::vector<at::Tensor> frames;
+  frames.reserve(T);
+  for (int64_t t = 0; t < T; ++t) frames.push_back(stepper.step(joint_transforms[t]));
+  c10::InferenceMode inference;
+  if (frames.empty()) return at::zeros({0, character.num_vertices(), 3}, at::kFloat);
+  return at::stack(frames, 0);
+}
+
+}  // namespace amt

@@ -1,0 +1,225 @@
+#pragma once
+// The full model's forward pass (paper section 4, DESIGN.md section 1), the one code path that the
+// evaluation (train/evaluate.h) and the CPU runtime (infer/) share:
+//   load_model_bundle  the four trained modules from one folder of checkpoints;
+//   bind_character     per-character work that depends only on the rest mesh (segmentation,
+//                      skinning weights from geodesics, apparel graph), computed once;
+//   PipelineStepper    per frame: B̂ = LBS of the body with the predicted weights (eq. 4), Â = the
+//                      apparel step from the last 3 states (eq. 11), V̂ = refiner(tile(Â, B̂)) (eq. 16).
+// All tensors are float32 on the CPU. Stages can be switched off for the ablations of Tables 2-4.
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "models/apparel_displacement.h"
+#include "models/apparel_segmenter.h"
+#include "models/joint_refiner.h"
+#include "models/skinning_predictor.h"
+#include "train/checkpoint.h"
+
+namespace amt {
+
+// === Model bundle
+
+/// The trained modules of one model folder, in eval mode, all trained on the same skeleton.
+struct ModelBundle {
+  /// The folder the checkpoints were read from ("" for a bundle assembled in code).
+  std::string dir;
+  /// J joint names shared by every checkpoint.
+  std::vector<std::string> joint_names;
+  /// f_c, f_s (the paper's geodesic-attention variant), f_d, f_j.
+  ApparelSegmenter segmenter{nullptr};
+  SkinningPredictor skinning{nullptr};
+  ApparelDisplacementNet apparel{nullptr};
+  JointRefiner refiner{nullptr};
+  /// The Table 4 ablation variants of f_s, null when their checkpoints are absent.
+  SkinningPredictor skinning_no_geodesic{nullptr};
+  SkinningPredictor skinning_sorted{nullptr};
+  /// The checkpoint infos, in the order segmenter, skinning, apparel, refiner (steps, fingerprints).
+  std::vector<CheckpointInfo> infos;
+
+  /// J.
+  int64_t num_joints() const { return static_cast<int64_t>(joint_names.size()); }
+  /// The skinning predictor of `variant`: skinning, skinning_no_geodesic or skinning_sorted. Throws
+  /// amt::Error naming the missing checkpoint when that variant was not loaded.
+  SkinningPredictor skinning_for(SkinningVariant variant) const;
+};
+
+/// File names of the checkpoints in a model folder.
+inline constexpr const char* kSegmenterCheckpoint = "segmenter.ckpt";
+inline constexpr const char* kSkinningCheckpoint = "skinning.ckpt";
+inline constexpr const char* kApparelCheckpoint = "apparel.ckpt";
+inline constexpr const char* kRefinerCheckpoint = "refiner.ckpt";
+inline constexpr const char* kSkinningNoGeodesicCheckpoint = "skinning_no_geodesic.ckpt";
+inline constexpr const char* kSkinningSortedCheckpoint = "skinning_sorted.ckpt";
+
+/// Loads <dir>/segmenter.ckpt, skinning.ckpt, apparel.ckpt, refiner.ckpt (required) and
+/// skinning_no_geodesic.ckpt, skinning_sorted.ckpt (optional), builds each network from its stored
+/// options and puts it in eval mode with gradients off. Throws amt::Error with a one-line reason for
+/// a missing folder or file ("m/apparel.ckpt: no such checkpoint (train it with amt train apparel)"),
+/// a file of another kind or version (train/checkpoint.h), a skinning variant file whose variant
+/// differs from its name, or checkpoints trained on different skeletons.
+ModelBundle load_model_bundle(const std::string& dir);
+
+/// Throws amt::Error unless `bundle` was trained on `joint_names` (same names, same order), naming
+/// `source` (e.g. the dataset file) and both skeletons.
+void check_bundle_skeleton(const ModelBundle& bundle, const std::vector<std::string>& joint_names,
+                           const std::string& source);
+
+// === Bind: per-character work
+
+/// How bind_character decides the parts and weights.
+struct BindOptions {
+  /// (N) bool or 0/1 override of the apparel mask (ground truth, an artist's mask); undefined: the
+  /// segmenter's p̂ > 0.5 (eq. 2).
+  at::Tensor apparel_mask;
+  /// Which skinning predictor gives the weights (Table 4); its checkpoint must be in the bundle.
+  SkinningVariant skinning_variant = SkinningVariant::kGeodesicAttention;
+  /// (N, J) weights that replace the predicted ones for every vertex (the skinning baseline with the
+  /// ground-truth body weights); undefined: predicted.
+  at::Tensor weights;
+  /// Also predict weights for every vertex (BoundCharacter::vertex_weights), which the "body module
+  /// only" ablation and the skinned start of a rollout need: geodesics over the whole mesh and the
+  /// skinning predictor on all N vertices. Ignored when `weights` is given (it fills vertex_weights).
+  bool all_vertex_weights = false;
+};
+
+/// Everything the per-frame step needs about one character, computed once from its rest mesh.
+/// Vertex sets are ascending index lists; "body" is the complement of the apparel mask.
+struct BoundCharacter {
+  /// V (N, 3) rest positions, metres; faces (F, 3) int64; joints (J, 3) rest joint positions, metres.
+  at::Tensor V, faces, joints;
+  /// edges (E, 2) int64 unique mesh edges (i < j).
+  at::Tensor edges;
+  /// apparel_prob (N) float p̂ of the segmenter (computed even when the mask is overridden).
+  at::Tensor apparel_prob;
+  /// apparel_mask (N) bool, the mask in use (p̂ > 0.5 or the override).
+  at::Tensor apparel_mask;
+  /// refiner_prob (N) float, the apparel input of the refiner: the mask in use as 0/1, the form the
+  /// refiner is trained with.
+  at::Tensor refiner_prob;
+  /// apparel_ids (N_a) and body_ids (N_b) int64.
+  at::Tensor apparel_ids, body_ids;
+  /// body_edges (E_b, 2), apparel_edges (E_a, 2) int64 mesh edges inside each part, numbered by
+  /// position in body_ids / apparel_ids (induced_edges).
+  at::Tensor body_edges, apparel_edges;
+  /// apparel_neighbors (N_a, K_max) int64 neighbour table of the apparel graph (neighbor_table).
+  at::Tensor apparel_neighbors;
+  /// G_body (N_b, J) float geodesic distances (metres) over the body mesh (the faces with three body
+  /// vertices), as the trainer computes them (train/samples.cpp); undefined when N_b = 0 or weights
+  /// were overridden.
+  at::Tensor G_body;
+  /// body_weights (N_b, J) float skinning weights of the body vertices, rows sum to 1.
+  at::Tensor body_weights;
+  /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
+  /// BindOptions::weights); undefined otherwise.
+  at::Tensor vertex_weights;
+
+  int64_t num_vertices() const { return V.size(0); }
+  int64_t num_apparel() const { return apparel_ids.size(0); }
+  int64_t num_body() const { return body_ids.size(0); }
+};
+
+/// Binds a character to the model:
+///   V (N, 3) float rest positions (metres), F (F, 3) int32/int64 faces, joints (J, 3) float rest
+///   joint positions on the bundle's skeleton.
+/// Throws amt::Error for shapes that do not match (naming the argument and the expected shape), a
+/// joint count other than the bundle's, an override mask of the wrong length, or a body part without
+/// faces when weights are to be predicted. Runs without gradients; deterministic.
+BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F,
+                              const at::Tensor& joints, const BindOptions& options = {});
+
+// === Starting a motion
+
+/// Frames of motion_lead_in that evaluation's rollout protocol and the runtime put before a clip's
+/// first frame, so that both start a clip identically.
+inline constexpr int64_t kDefaultLeadInFrames = 10;
+
+/// A history of 3 copies of the rest apparel positions: (3, N_a, 3). With the motion blended in from
+/// the rest pose (motion_lead_in) this starts a user's clip with nothing but the rest mesh.
+at::Tensor rest_apparel_history(const BoundCharacter& character);
+
+/// Joint transforms (frames, J, 3, 4) that move the skeleton from its rest pose (R = I, t = J_rest)
+/// to `first` (J, 3, 4), the first frame of a motion: per joint, rotations slerped and positions
+/// interpolated linearly at s = (k + 1) / (frames + 1), k = 0 .. frames - 1 (the frame `first` itself
+/// is not included). frames = 0 gives (0, J, 3, 4).
+at::Tensor motion_lead_in(const at::Tensor& first, const at::Tensor& rest_joints, int64_t frames);
+
+// === Per-frame stepping
+
+/// Which stages run (paper Table 3) and what a step returns.
+enum class PipelineStages {
+  /// Every vertex skinned with BoundCharacter::vertex_weights (the body module only; with the
+  /// ground-truth weights, the skinning baseline of Table 2). Needs vertex_weights.
+  kBodyOnly,
+  /// B̂ and Â tiled into mesh order, no refiner.
+  kBodyApparel,
+  /// The full model: V̂ = refiner(tile(Â, B̂)) (eq. 16).
+  kFull,
+};
+
+/// "body_only", "body_apparel", "full".
+const char* pipeline_stages_name(PipelineStages stages);
+
+/// One frame's result.
+struct StepOutput {
+  /// V̂ (N, 3) in mesh order, metres.
+  at::Tensor V_hat;
+  /// B̂ (N_b, 3) and Â (N_a, 3) before tiling (undefined for kBodyOnly, where V̂ is B̂ of every vertex).
+  at::Tensor B_hat, A_hat;
+};
+
+/// Wall time of the stages of one step, seconds (PipelineStepper::step with a StepTimes to fill).
+///   lbs       B̂ = LBS of the skinned vertex set (eq. 4)
+///   apparel   Â = the apparel step (eq. 11) and the history update (0 without apparel or kBodyOnly)
+///   refiner   tile(Â, B̂) and the refiner (eq. 16) (the tile alone for kBodyApparel; 0 for kBodyOnly)
+struct StepTimes {
+  double lbs = 0, apparel = 0, refiner = 0;
+  double total() const { return lbs + apparel + refiner; }
+};
+
+/// Runs the model frame by frame on one bound character. Holds references to the bundle and the
+/// character (both must outlive the stepper) and the apparel history, the last 3 predicted states.
+/// Every step runs under c10::InferenceMode; outputs are inference tensors (clone() to use them in
+/// autograd). Per frame it does only LBS, the apparel step and the refiner: nothing of bind is redone.
+class PipelineStepper {
+ public:
+  /// history (3, N_a, 3): A^(t-3), A^(t-2), A^(t-1), oldest first (rest_apparel_history, or ground
+  /// truth for the paper protocol). Throws amt::Error for a history of another shape, or kBodyOnly
+  /// without vertex_weights.
+  PipelineStepper(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
+                  PipelineStages stages = PipelineStages::kFull);
+
+  /// Predicts the next frame from its joint transforms T^(t) (J, 3, 4) and appends Â^(t) to the
+  /// history -> V̂ (N, 3). `times`, when given, receives the wall time of each stage.
+  at::Tensor step(const at::Tensor& joint_transforms, StepTimes* times = nullptr);
+
+  /// As step, keeping B̂ and Â.
+  StepOutput step_detailed(const at::Tensor& joint_transforms, StepTimes* times = nullptr);
+
+  /// Replaces the history (3, N_a, 3) and the frame counter (e.g. at the start of a new window).
+  void reset(const at::Tensor& history);
+
+  /// The current history (3, N_a, 3), oldest first.
+  const at::Tensor& history() const { return history_; }
+  /// Steps taken since construction or the last reset.
+  int64_t frames() const { return frames_; }
+  PipelineStages stages() const { return stages_; }
+
+ private:
+  const ModelBundle& bundle_;
+  const BoundCharacter& character_;
+  PipelineStages stages_;
+  at::Tensor history_;
+  int64_t frames_ = 0;
+  // Per-character constants of LBS: weights and rest positions of the skinned vertex set.
+  at::Tensor lbs_rest_, lbs_weights_;
+};
+
+/// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
+at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
+                        const at::Tensor& joint_transforms, PipelineStages stages = PipelineStages::kFull);
+
+}  // namespace amt

@@ -1,0 +1,440 @@
+#include "train/report.h"
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "data_tools/atomic_file.h"
+#include "data_tools/error.h"
+
+extern char** environ;
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+// === Formatting
+
+std::string fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "–";
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << v;
+  return out.str();
+}
+
+std::string percent(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + " %" : "–"; }
+
+const char* protocol_text(const std::string& protocol) {
+  if (protocol == "paper") return "paper protocol (10-frame windows, 3 ground-truth apparel states, 7 predicted frames)";
+  if (protocol == "rollout") return "rollout protocol (whole clip from the rest pose)";
+  return "predictions file (every frame)";
+}
+
+std::string score_header() {
+  return "| Subset | Method | PMD (cm) | PMD_a (cm) | PMD_b (cm) | ELS | Penetration | Depth (cm) | Clips / frames |\n"
+         "|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+}
+
+std::string score_row(const MethodScores& r) {
+  const MotionScores& s = r.scores;
+  std::ostringstream out;
+  out << "| " << r.subset << " | " << method_label(r.method) << " | " << fixed(s.pmd, 2) << " | " << fixed(s.pmd_a, 2)
+      << " | " << fixed(s.pmd_b, 2) << " | " << fixed(s.els, 3) << " | " << percent(s.penetration_share) << " | "
+      << fixed(s.penetration_depth_cm, 2) << " | " << s.clips << " / " << s.frames << " |\n";
+  return out.str();
+}
+
+std::vector<std::string> subsets_of(const EvaluationResult& result) {
+  std::vector<std::string> subsets;
+  for (const char* s : {kHeldOutCharacters, kHeldOutClips})
+    if (result.clips.count(s)) subsets.push_back(s);
+  return subsets;
+}
+
+std::vector<std::string> protocols_of(const EvaluationResult& result) {
+  std::vector<std::string> protocols;
+  for (const char* p : {"paper", "rollout", "file"}) {
+    for (const MethodScores& r : result.rows)
+      if (r.protocol == p) {
+        protocols.push_back(p);
+        break;
+      }
+  }
+  return protocols;
+}
+
+// One analogue table: for each protocol, the rows of `methods` on every subset.
+void write_table(std::ostringstream& md, const EvaluationResult& result, const std::string& title,
+                 const std::string& intro, const std::vector<std::string>& methods) {
+  md << "## " << title << "\n\n" << intro << "\n\n";
+  bool any = false;
+  for (const std::string& protocol : protocols_of(result)) {
+    std::string rows;
+    for (const std::string& subset : subsets_of(result))
+      for (const std::string& m : methods)
+        if (const MethodScores* r = result.find(m, protocol, subset)) rows += score_row(*r);
+    if (rows.empty()) continue;
+    any = true;
+    md << "**" << protocol_text(protocol) << "**\n\n" << score_header() << rows << "\n";
+  }
+  if (!any) md << "Not evaluated (no method of this table ran).\n\n";
+}
+
+// === CSV
+
+std::vector<std::string> split_csv(const std::string& line) {
+  std::vector<std::string> cells;
+  std::stringstream in(line);
+  std::string cell;
+  while (std::getline(in, cell, ',')) cells.push_back(cell);
+  if (!line.empty() && line.back() == ',') cells.emplace_back();
+  return cells;
+}
+
+// === Plots
+
+// Writes `script` to <dir>/<name>.gp, runs gnuplot on it (which writes <png>.tmp) and renames the PNG.
+bool draw(const std::string& dir, const std::string& name, const std::string& script_body, ReportFiles& files) {
+  const std::string terminal = gnuplot_png_terminal();
+  if (terminal.empty()) {
+    files.notes.push_back("gnuplot with a PNG terminal was not found: " + name + ".png was not drawn.");
+    return false;
+  }
+  const std::string png = (fs::path(dir) / (name + ".png")).string();
+  const std::string tmp = temporary_path(png);
+  const std::string script_path = (fs::path(dir) / (name + ".gp")).string();
+  std::ostringstream script;
+  script << "set terminal " << terminal << " size 900,540\n"
+         << "set output '" << tmp << "'\n"
+         << script_body << "unset output\n";
+  write_file_atomically(script_path, script.str());
+  const bool ok = run_gnuplot(script_path);
+  std::error_code ignored;
+  if (!ok || !fs::exists(tmp, ignored)) {
+    fs::remove(tmp, ignored);
+    files.notes.push_back("gnuplot failed on " + script_path + ": " + name + ".png was not drawn.");
+    return false;
+  }
+  replace_with_temporary(tmp, png);
+  files.plots.push_back(name + ".png");
+  return true;
+}
+
+void plot_loss_curves(const ReportOptions& options, ReportFiles& files) {
+  const std::vector<TrainingLog> logs = read_training_logs(options.model_dir);
+  if (logs.empty()) {
+    files.notes.push_back("No training logs (*.csv with step, loss columns) in " +
+                          (options.model_dir.empty() ? std::string("the model folder") : options.model_dir) +
+                          ": no loss curves.");
+    return;
+  }
+  for (const TrainingLog& log : logs) {
+    const int step = log.column("step"), loss = log.column("loss"), val = log.column("val_loss");
+    std::ostringstream data;
+    data << "# step loss val_loss\n";
+    for (const auto& row : log.rows) {
+      const auto at = [&](int c) { return c >= 0 && c < static_cast<int>(row.size()) ? row[c] : std::nan(""); };
+      const double v = at(val);
+      data << at(step) << " " << at(loss) << " " << (std::isfinite(v) ? std::to_string(v) : std::string("NaN")) << "\n";
+    }
+    const std::string data_path = (fs::path(options.out_dir) / ("loss_" + log.name + ".dat")).string();
+    write_file_atomically(data_path, data.str());
+    std::ostringstream body;
+    body << "set title 'Training loss: " << log.name << "'\nset xlabel 'step'\nset ylabel 'loss'\nset logscale y\n"
+         << "set grid\nset key top right\nset datafile missing 'NaN'\n"
+         << "plot '" << data_path << "' using 1:2 with lines lw 1 title 'loss'";
+    if (val >= 0) body << ", '" << data_path << "' using 1:3 with linespoints pt 7 ps 0.6 title 'val_loss'";
+    body << "\n";
+    draw(options.out_dir, "loss_" + log.name, body.str(), files);
+  }
+}
+
+void plot_rollout(const EvaluationResult& result, const ReportOptions& options, ReportFiles& files) {
+  std::vector<const RolloutCurve*> curves;
+  for (const RolloutCurve& c : result.curves)
+    if (c.method == "full" || c.method == "skinning_baseline" || c.method == "predictions") curves.push_back(&c);
+  if (curves.empty()) {
+    files.notes.push_back("No rollout was evaluated: no PMD_a-over-frames plot.");
+    return;
+  }
+  std::ostringstream body;
+  body << "set title 'PMD_a over rollout frames'\nset xlabel 'frame'\nset ylabel 'PMD_a (cm)'\nset grid\n"
+       << "set key top left\nset datafile missing 'NaN'\nplot ";
+  for (size_t i = 0; i < curves.size(); ++i) {
+    std::ostringstream data;
+    for (size_t k = 0; k < curves[i]->pmd_a.size(); ++k) {
+      const double v = curves[i]->pmd_a[k];
+      data << k + 1 << " " << (std::isfinite(v) ? std::to_string(v) : std::string("NaN")) << "\n";
+    }
+    const std::string data_path = (fs::path(options.out_dir) / ("rollout_" + std::to_string(i) + ".dat")).string();
+    write_file_atomically(data_path, data.str());
+    body << (i ? ", " : "") << "'" << data_path << "' using 1:2 with lines lw 2 title '" << method_label(curves[i]->method)
+         << ", " << curves[i]->subset << "'";
+  }
+  body << "\n";
+  draw(options.out_dir, "rollout_pmd_a", body.str(), files);
+}
+
+}  // namespace
+
+// === Training logs
+
+int TrainingLog::column(const std::string& name) const {
+  const auto it = std::find(columns.begin(), columns.end(), name);
+  return it == columns.end() ? -1 : static_cast<int>(it - columns.begin());
+}
+
+std::vector<TrainingLog> read_training_logs(const std::string& dir) {
+  std::vector<TrainingLog> logs;
+  std::error_code error;
+  if (dir.empty() || !fs::is_directory(dir, error)) return logs;
+  std::vector<fs::path> paths;
+  for (const auto& entry : fs::directory_iterator(dir, error))
+    if (entry.is_regular_file() && entry.path().extension() == ".csv") paths.push_back(entry.path());
+  std::sort(paths.begin(), paths.end());
+  for (const fs::path& path : paths) {
+    std::ifstream in(path);
+    std::string line;
+    if (!std::getline(in, line)) continue;
+    TrainingLog log;
+    log.name = path.stem().string();
+    log.columns = split_csv(line);
+    if (log.columns.size() < 2 || log.columns[0] != "step" || log.columns[1] != "loss") continue;
+    while (std::getline(in, line)) {
+      if (line.empty()) continue;
+      std::vector<double> row;
+      for (const std::string& cell : split_csv(line)) {
+        char* end = nullptr;
+        const double v = std::strtod(cell.c_str(), &end);
+        row.push_back(cell.empty() || end == cell.c_str() ? std::nan("") : v);
+      }
+      log.rows.push_back(std::move(row));
+    }
+    logs.push_back(std::move(log));
+  }
+  return logs;
+}
+
+// === gnuplot
+
+std::string gnuplot_png_terminal() {
+  static const std::string terminal = [] {
+    FILE* pipe = popen("gnuplot -e 'set terminal' 2>&1 </dev/null", "r");
+    if (!pipe) return std::string();
+    std::string text;
+    char buffer[4096];
+    while (size_t n = fread(buffer, 1, sizeof buffer, pipe)) text.append(buffer, n);
+    if (pclose(pipe) != 0) return std::string();
+    std::istringstream lines(text);
+    std::string line, found;
+    while (std::getline(lines, line)) {
+      std::istringstream words(line);
+      std::string word;
+      words >> word;
+      if (word == "pngcairo") return std::string("pngcairo");
+      if (word == "png") found = "png";
+    }
+    return found;
+  }();
+  return terminal;
+}
+
+bool run_gnuplot(const std::string& script) {
+  pid_t pid = 0;
+  std::string program = "gnuplot", argument = script;
+  char* argv[] = {program.data(), argument.data(), nullptr};
+  if (posix_spawnp(&pid, "gnuplot", nullptr, nullptr, argv, environ) != 0) return false;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return false;
+  }
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+// === Report
+
+std::string report_markdown(const EvaluationResult& result, const ReportOptions& options,
+                            const std::vector<std::string>& plots, const std::vector<std::string>& plot_notes) {
+  std::ostringstream md;
+  md << "# amt evaluation report\n\n";
+  if (!options.command.empty()) md << "Command: `" << options.command << "`\n\n";
+  md << "- Data: ";
+  for (size_t i = 0; i < result.shards.size(); ++i) md << (i ? ", " : "") << "`" << result.shards[i] << "`";
+  md << "\n";
+  if (!result.model_dir.empty()) md << "- Model: `" << result.model_dir << "`\n";
+  if (!result.predictions.empty()) md << "- Predictions: `" << result.predictions << "`\n";
+  for (const auto& [subset, n] : result.clips) md << "- " << subset << ": " << n << " clip(s)\n";
+  md << "- Wall time: " << fixed(result.seconds, 1) << " s\n\n";
+  md << "Metrics (DESIGN.md section 5): PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "
+        "averaged over vertices, then frames, then clips; ELS = mean of 1 - | |e_pred| / |e_gt| - 1 | over edges "
+        "(1 is perfect); penetration = share of ground-truth apparel vertices inside the predicted body surface "
+        "(winding number) and their mean depth.\n\n";
+
+  // Segmentation.
+  if (!result.segmentation.empty()) {
+    md << "## Apparel segmentation\n\n| Subset | IoU | F1 | Precision | Recall |\n|---|---:|---:|---:|---:|\n";
+    for (const auto& [subset, s] : result.segmentation)
+      md << "| " << subset << " | " << fixed(s.iou, 3) << " | " << fixed(s.f1, 3) << " | " << fixed(s.precision, 3)
+         << " | " << fixed(s.recall, 3) << " |\n";
+    md << "\n";
+  }
+
+  if (!result.predictions.empty()) {
+    write_table(md, result, "Predictions file", "Predicted vertices of the file scored against the ground truth.",
+                {"predictions"});
+  } else {
+    write_table(md, result, "Table 2 analogue: baselines",
+                "The skinning baseline deforms the whole character, apparel included, by LBS with the ground-truth "
+                "body weights (what the paper's NBS / SPT baselines do); LBS with the predicted weights of every "
+                "vertex; the full model.",
+                {"skinning_baseline", "lbs_predicted", "full"});
+    write_table(md, result, "Table 3 analogue: ablation of the modules",
+                "Body module only (every vertex skinned with predicted weights), body + apparel modules (no "
+                "refiner), the full model, and the full model with the ground-truth apparel mask.",
+                {"lbs_predicted", "body_apparel", "full", "full_gt_mask"});
+    write_table(md, result, "Table 4 analogue: geodesic variants of the skinning predictor",
+                "The full model with the ground-truth apparel mask and each skinning predictor variant: geodesic "
+                "attention (the paper's), without geodesic distances, joints sorted by geodesic distance.",
+                {"full_gt_mask", "no_geodesic", "sort_by_geodesic"});
+  }
+
+  // Rollout drift.
+  bool rollout_header = false;
+  for (const RolloutCurve& c : result.curves) {
+    if (!rollout_header) {
+      md << "## Rollout drift\n\nPMD_a (cm) at rollout frame k (the k-th predicted frame, after a "
+         << kDefaultLeadInFrames << "-frame lead-in from the rest pose), averaged over the clips that long.\n\n"
+         << "| Subset | Method |";
+      for (int f : result.options.rollout_frames) md << " frame " << f << " |";
+      md << "\n|---|---|";
+      for (size_t i = 0; i < result.options.rollout_frames.size(); ++i) md << "---:|";
+      md << "\n";
+      rollout_header = true;
+    }
+    md << "| " << c.subset << " | " << method_label(c.method) << " |";
+    for (int f : result.options.rollout_frames) {
+      if (f >= 1 && f <= static_cast<int>(c.pmd_a.size()) && c.clips[f - 1] > 0)
+        md << " " << fixed(c.pmd_a[f - 1], 2) << " (" << c.clips[f - 1] << " clips) |";
+      else
+        md << " – (no clip that long) |";
+    }
+    md << "\n";
+  }
+  if (rollout_header) md << "\n";
+
+  // Per character.
+  if (!result.characters.empty()) {
+    const std::string main = result.predictions.empty() ? "full" : "predictions";
+    md << "## Per character\n\n| Character | Subset | Vertices | Apparel | IoU | Protocol | Baseline PMD_a | "
+       << method_label(main) << " PMD | PMD_a | PMD_b | ELS |\n|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|\n";
+    for (const CharacterScores& c : result.characters) {
+      for (const std::string& protocol : protocols_of(result)) {
+        const auto m = c.scores.find(main);
+        if (m == c.scores.end() || !m->second.count(protocol)) continue;
+        const MotionScores& s = m->second.at(protocol);
+        double baseline = std::nan("");
+        const auto b = c.scores.find("skinning_baseline");
+        if (b != c.scores.end() && b->second.count(protocol)) baseline = b->second.at(protocol).pmd_a;
+        md << "| " << c.character << " | " << c.subset << " | " << c.num_vertices << " | " << c.num_apparel << " | "
+           << (result.predictions.empty() ? fixed(c.segmentation.iou, 3) : std::string("–")) << " | " << protocol
+           << " | " << fixed(baseline, 2) << " | " << fixed(s.pmd, 2) << " | " << fixed(s.pmd_a, 2) << " | "
+           << fixed(s.pmd_b, 2) << " | " << fixed(s.els, 3) << " |\n";
+      }
+    }
+    md << "\n";
+  }
+
+  // Targets of issue 5.
+  if (result.predictions.empty()) {
+    md << "## Targets (issue 5, paper protocol)\n\n";
+    bool any = false;
+    for (const std::string& subset : subsets_of(result)) {
+      const MethodScores* full = result.find("full", "paper", subset);
+      const MethodScores* base = result.find("skinning_baseline", "paper", subset);
+      if (full && base) {
+        any = true;
+        const double ratio = full->scores.pmd_a / base->scores.pmd_a;
+        md << "- " << subset << ": full PMD_a / baseline PMD_a = " << fixed(ratio, 3) << " (target <= 0.35): "
+           << (ratio <= 0.35 ? "met" : "NOT met") << "\n";
+      }
+      if (full) {
+        any = true;
+        md << "- " << subset << ": full ELS = " << fixed(full->scores.els, 3) << " (target >= 0.94): "
+           << (full->scores.els >= 0.94 ? "met" : "NOT met") << "\n";
+      }
+      const auto seg = result.segmentation.find(subset);
+      if (seg != result.segmentation.end()) {
+        any = true;
+        md << "- " << subset << ": segmentation IoU = " << fixed(seg->second.iou, 3) << " (target >= 0.9): "
+           << (seg->second.iou >= 0.9 ? "met" : "NOT met") << "\n";
+      }
+      // Table 3 ordering: PMD decreases from body only to full + GT mask.
+      const std::vector<std::string> order = {"lbs_predicted", "body_apparel", "full", "full_gt_mask"};
+      std::vector<double> pmd;
+      for (const std::string& m : order)
+        if (const MethodScores* r = result.find(m, "paper", subset)) pmd.push_back(r->scores.pmd);
+      if (pmd.size() == order.size()) {
+        any = true;
+        const bool holds = pmd[0] >= pmd[1] && pmd[1] >= pmd[2] && pmd[2] >= pmd[3];
+        md << "- " << subset << ": Table 3 ordering of PMD (body only >= body + apparel >= full >= full + GT mask): "
+           << fixed(pmd[0], 2) << ", " << fixed(pmd[1], 2) << ", " << fixed(pmd[2], 2) << ", " << fixed(pmd[3], 2)
+           << ": " << (holds ? "holds" : "does NOT hold") << "\n";
+      }
+      const MethodScores* attention = result.find("full_gt_mask", "paper", subset);
+      const MethodScores* no_g = result.find("no_geodesic", "paper", subset);
+      const MethodScores* sorted = result.find("sort_by_geodesic", "paper", subset);
+      if (attention && no_g && sorted) {
+        any = true;
+        const bool holds = attention->scores.pmd_b <= no_g->scores.pmd_b && attention->scores.pmd_b <= sorted->scores.pmd_b;
+        md << "- " << subset << ": Table 4 ordering of PMD_b (G + attention best): " << fixed(attention->scores.pmd_b, 2)
+           << " vs w/o G " << fixed(no_g->scores.pmd_b, 2) << ", sort by G " << fixed(sorted->scores.pmd_b, 2) << ": "
+           << (holds ? "holds" : "does NOT hold") << "\n";
+      }
+    }
+    if (!any) md << "The paper protocol was not run or had no clip: no target can be checked.\n";
+    md << "\n";
+  }
+
+  if (!plots.empty()) {
+    md << "## Plots\n\n";
+    for (const std::string& p : plots) md << "![" << p << "](" << p << ")\n\n";
+  }
+  if (!result.notes.empty() || !plot_notes.empty()) {
+    md << "## Notes\n\n";
+    for (const std::string& n : result.notes) md << "- " << n << "\n";
+    for (const std::string& n : plot_notes) md << "- " << n << "\n";
+    md << "\n";
+  }
+  md << "Machine-readable figures: `metrics.json`.\n";
+  return md.str();
+}
+
+ReportFiles write_report(const EvaluationResult& result, const ReportOptions& options) {
+  AMT_CHECK(!options.out_dir.empty(), "eval: --out: expected an output folder, found nothing");
+  std::error_code error;
+  fs::create_directories(options.out_dir, error);
+  AMT_CHECK(fs::is_directory(options.out_dir, error), options.out_dir,
+            ": cannot create the output folder (", error.message(), ")");
+  ReportFiles files;
+  if (options.plots) {
+    plot_loss_curves(options, files);
+    plot_rollout(result, options, files);
+  }
+  files.json = (fs::path(options.out_dir) / "metrics.json").string();
+  write_file_atomically(files.json, evaluation_json(result));
+  files.markdown = (fs::path(options.out_dir) / "report.md").string();
+  write_file_atomically(files.markdown, report_markdown(result, options, files.plots, files.notes));
+  return files;
+}
+
+}  // namespace amt
