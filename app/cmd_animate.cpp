@@ -30,6 +30,7 @@ void add_animate_command(CLI::App& app) {
   cmd->add_option("--out", o->out,
                   "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ files")
       ->required();
+  cmd->add_option("--picture", o->picture, "Also write a PNG of four frames spread over the clip (a quick look)");
   cmd->add_option("--bind", o->bind_path,
                   "Bind cache file (default: <out>.bind beside the output; 'none' disables it)");
   cmd->add_option("--character-joints", o->character.joints, "Joints JSON giving the skeleton of an unrigged mesh");

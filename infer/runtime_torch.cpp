@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "data_tools/error.h"
+#include "data_tools/render.h"
 
 namespace amt {
 
@@ -173,6 +174,16 @@ AnimateSummary animate(const AnimateOptions& o) {
   std::vector<float> frame_seconds;
   frame_seconds.reserve(size_t(s.frames));
   MatrixX3f V;
+  // Frames of the picture, and their renderings (four small images: memory stays flat).
+  std::vector<int> picture_frames;
+  std::vector<Image> pictures;
+  if (!o.picture.empty()) {
+    for (const double share : {0.2, 0.4, 0.6, 0.8}) picture_frames.push_back(int(share * (s.frames - 1)));
+  }
+  RenderOptions picture_options;
+  picture_options.width = 320;
+  picture_options.height = 400;
+  picture_options.world_height = 1.25f * float(character.mesh.V.col(1).maxCoeff() - character.mesh.V.col(1).minCoeff());
   auto last_print = Clock::now();
   const auto loop_start = Clock::now();
   for (int t = 0; t < s.frames; ++t) {
@@ -182,6 +193,9 @@ AnimateSummary animate(const AnimateOptions& o) {
     const auto out_start = Clock::now();
     writer->append(V, T);
     times.output = seconds_since(out_start);
+    for (const int k : picture_frames) {
+      if (k == t) pictures.push_back(render_character(TriMesh{V, character.mesh.F}, info.apparel_mask, picture_options));
+    }
     frame_seconds.push_back(float(times.total()));
     s.mean.model += times.model, s.mean.penetration += times.penetration, s.mean.output += times.output;
     s.before.inside += report.before.inside, s.before.total += report.before.total;
@@ -197,6 +211,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     }
   }
   const std::string written = writer->finish();
+  if (!pictures.empty()) write_png(image_grid(pictures, int(pictures.size())), o.picture);
   s.output = written;
   const double n = std::max(1, s.frames);
   s.mean.model /= n, s.mean.penetration /= n, s.mean.output /= n;

@@ -85,6 +85,9 @@ struct AnimateOptions {
   PenetrationOptions penetration;
   /// Print the mapping and a progress line (done/total, frames/s, ETA) on stderr.
   bool verbose = true;
+  /// When not empty, a PNG of four output frames (at 20, 40, 60 and 80 % of the clip) side by side,
+  /// rendered with data_tools/render.h (apparel in blue), for a quick look without a glTF viewer.
+  std::string picture;
 };
 
 /// What a run did: counts, timings (seconds) and penetration over the written frames.

@@ -34,5 +34,7 @@ fi
 
 mkdir -p out
 echo "demo: animating a generated stylized character (seed 7) with $(basename "$clip") using $model"
-"$amt" animate --character generated:7 --motion "$clip" --model "$model" --out out/demo.glb --threads "$threads"
-echo "demo: wrote $(pwd)/out/demo.glb (the bind is cached in out/demo.bind: a second run skips it)"
+"$amt" animate --character generated:7 --motion "$clip" --model "$model" --out out/demo.glb --threads "$threads" \
+  --picture out/demo.png
+echo "demo: wrote $(pwd)/out/demo.glb and a picture of four frames, out/demo.png (the bind is cached in"
+echo "demo: out/demo.bind: a second run skips it)"
