@@ -14,6 +14,7 @@
 #include "data_tools/obj_io.h"
 #include "data_tools/shapes.h"
 #include "tests/test_support.h"
+#include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
 #include "train/checkpoint.h"
 #include "train/module_options.h"
@@ -22,47 +23,6 @@ namespace amt {
 namespace {
 
 namespace fs = std::filesystem;
-
-template <typename Net>
-void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json,
-                const std::vector<std::string>& joints) {
-  CheckpointInfo info;
-  info.kind = kind;
-  info.options_json = options_json;
-  info.config_json = "{}";
-  info.joint_names = joints;
-  save_checkpoint(path, info, *net, nullptr);
-}
-
-// A model folder of small freshly initialised networks (seeded); the refiner starts non-zero.
-std::string write_model(const fs::path& dir, uint64_t seed = 7,
-                        const std::vector<std::string>& joints = canonical_joint_names()) {
-  fs::create_directories(dir);
-  torch::manual_seed(seed);
-  ApparelSegmenterOptions so;
-  so.encoder_widths = {16, 32};
-  so.decoder_widths = {16};
-  save_fresh((dir / "segmenter.ckpt").string(), ModuleKind::kSegmenter, ApparelSegmenter(so), options_to_json(so),
-             joints);
-  SkinningPredictorOptions ko;
-  ko.feature_widths = {16, 16};
-  ko.head_encoder_widths = {16, 32};
-  ko.head_decoder_widths = {16};
-  save_fresh((dir / "skinning.ckpt").string(), ModuleKind::kSkinning, SkinningPredictor(ko), options_to_json(ko),
-             joints);
-  ApparelDisplacementOptions ao;
-  ao.motion_widths = {16};
-  ao.motion_code = 8;
-  ao.edge_widths = {16, 16};
-  ao.decoder_widths = {16};
-  save_fresh((dir / "apparel.ckpt").string(), ModuleKind::kApparel, ApparelDisplacementNet(ao), options_to_json(ao),
-             joints);
-  JointRefinerOptions ro;
-  ro.hidden_widths = {16};
-  ro.zero_init = false;
-  save_fresh((dir / "refiner.ckpt").string(), ModuleKind::kRefiner, JointRefiner(ro), options_to_json(ro), joints);
-  return dir.string();
-}
 
 // The micro dataset (capsule character whose pelvis capsules are apparel, 30-frame walks) and its mask.
 struct Fixture {
@@ -75,7 +35,7 @@ Fixture make_fixture(const std::string& name) {
   f.dir = test::temp_dir(name);
   f.data = (f.dir / "micro.h5").string();
   test::write_micro_dataset(f.data);
-  f.model = write_model(f.dir / "model");
+  f.model = test::write_fresh_model(f.dir / "model");
   // The ground-truth mask as an artist's mask file, so the (untrained) segmenter does not decide.
   const CharacterData c = DatasetReader(f.data).read_character("capsules");
   f.mask = (f.dir / "mask.txt").string();
@@ -128,7 +88,7 @@ TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
   std::vector<uint8_t> other_mask = c.apparel_mask;
   other_mask[0] ^= 1;
   EXPECT_FALSE(bind_cached(bundle, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
-  write_model(f.dir / "model", 8);
+  test::write_fresh_model(f.dir / "model", 8);
   const ModelBundle retrained = load_model_bundle(f.model);
   EXPECT_FALSE(bind_cached(retrained, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
 }
@@ -222,7 +182,7 @@ TEST(Animate, BadInputGivesOneLineErrorsAndWritesNothing) {
     std::vector<std::string> names;
     for (int j = 0; j < 22; ++j) names.push_back("bone" + std::to_string(j));
     AnimateOptions o = options_for(f, (out_dir / "c.glb").string());
-    o.model_dir = write_model(f.dir / "other_model", 7, names);
+    o.model_dir = test::write_fresh_model(f.dir / "other_model", 7, names);
     const std::string e = test::error_of([&] { animate(o); });
     EXPECT_NE(e.find("other_model"), std::string::npos) << e;
     EXPECT_NE(e.find("bone0"), std::string::npos) << e;

@@ -15,6 +15,7 @@
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
 #include "data_tools/skeleton.h"
+#include "fresh_model.h"
 #include "micro_dataset.h"
 #include "train/module_options.h"
 #include "train/report.h"
@@ -22,38 +23,9 @@
 namespace amt {
 namespace {
 
-template <typename Net>
-void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json) {
-  CheckpointInfo info;
-  info.kind = kind;
-  info.options_json = options_json;
-  info.config_json = "{}";
-  info.joint_names = canonical_joint_names();
-  save_checkpoint(path, info, *net, nullptr);
-}
-
 // Freshly initialised small modules in a model folder, with a training log to plot.
 std::string write_fresh_bundle(const std::string& name) {
-  const std::string dir = test::test_directory(name);
-  torch::manual_seed(3);
-  ApparelSegmenterOptions so;
-  so.encoder_widths = {16, 32};
-  so.decoder_widths = {16};
-  save_fresh(dir + "/segmenter.ckpt", ModuleKind::kSegmenter, ApparelSegmenter(so), options_to_json(so));
-  SkinningPredictorOptions ko;
-  ko.feature_widths = {16, 16};
-  ko.head_encoder_widths = {16, 32};
-  ko.head_decoder_widths = {16};
-  save_fresh(dir + "/skinning.ckpt", ModuleKind::kSkinning, SkinningPredictor(ko), options_to_json(ko));
-  ApparelDisplacementOptions ao;
-  ao.motion_widths = {16};
-  ao.motion_code = 8;
-  ao.edge_widths = {16};
-  ao.decoder_widths = {16};
-  save_fresh(dir + "/apparel.ckpt", ModuleKind::kApparel, ApparelDisplacementNet(ao), options_to_json(ao));
-  JointRefinerOptions ro;
-  ro.hidden_widths = {16};
-  save_fresh(dir + "/refiner.ckpt", ModuleKind::kRefiner, JointRefiner(ro), options_to_json(ro));
+  const std::string dir = test::write_fresh_model(test::test_directory(name), 3);
   std::ofstream(dir + "/apparel.csv") << "step,loss,vertex,edge,val_loss\n1,0.5,0.4,0.001,\n2,0.25,0.2,0.0005,0.3\n";
   return dir;
 }

@@ -14,6 +14,7 @@
 #include "data_tools/lbs_torch.h"
 #include "data_tools/skeleton.h"
 #include "micro_dataset.h"
+#include "fresh_model.h"
 #include "train/module_options.h"
 #include "train/samples.h"
 
@@ -24,48 +25,9 @@ namespace fs = std::filesystem;
 
 // === Helpers
 
-template <typename Net>
-void save_fresh(const std::string& path, ModuleKind kind, const Net& net, const std::string& options_json,
-                const std::vector<std::string>& joints) {
-  CheckpointInfo info;
-  info.kind = kind;
-  info.options_json = options_json;
-  info.config_json = "{}";
-  info.joint_names = joints;
-  save_checkpoint(path, info, *net, nullptr);
-}
-
-// A model folder of freshly initialised (seeded) modules; the refiner starts non-zero so it matters.
+// A model folder of freshly initialised (seeded) modules in the test's scratch folder.
 std::string write_fresh_bundle(const std::string& name, const std::vector<std::string>& joints = canonical_joint_names()) {
-  const std::string dir = test::test_directory(name);
-  torch::manual_seed(7);
-  const int64_t J = static_cast<int64_t>(joints.size());
-  ApparelSegmenterOptions so;
-  so.encoder_widths = {16, 32};
-  so.decoder_widths = {16};
-  ApparelSegmenter segmenter(so);
-  save_fresh(dir + "/segmenter.ckpt", ModuleKind::kSegmenter, segmenter, options_to_json(so), joints);
-  SkinningPredictorOptions ko;
-  ko.num_joints = J;
-  ko.feature_widths = {16, 16};
-  ko.head_encoder_widths = {16, 32};
-  ko.head_decoder_widths = {16};
-  SkinningPredictor skinning(ko);
-  save_fresh(dir + "/skinning.ckpt", ModuleKind::kSkinning, skinning, options_to_json(ko), joints);
-  ApparelDisplacementOptions ao;
-  ao.num_joints = J;
-  ao.motion_widths = {16};
-  ao.motion_code = 8;
-  ao.edge_widths = {16, 16};
-  ao.decoder_widths = {16};
-  ApparelDisplacementNet apparel(ao);
-  save_fresh(dir + "/apparel.ckpt", ModuleKind::kApparel, apparel, options_to_json(ao), joints);
-  JointRefinerOptions ro;
-  ro.hidden_widths = {16};
-  ro.zero_init = false;
-  JointRefiner refiner(ro);
-  save_fresh(dir + "/refiner.ckpt", ModuleKind::kRefiner, refiner, options_to_json(ro), joints);
-  return dir;
+  return test::write_fresh_model(test::test_directory(name), 7, joints);
 }
 
 struct MicroCharacter {
