@@ -94,7 +94,7 @@ TEST(PipelineBind, MatchesTheTrainersCharacterTensors) {
   test::use_one_thread();
   const std::string dir = write_fresh_bundle("bind_bundle");
   const std::string data = test::test_directory("bind_data") + "/micro.h5";
-  test::write_micro_dataset(data, {200, 12, 1});
+  test::write_micro_dataset(data, {200, 12, 1, {}});
   const ModelBundle bundle = load_model_bundle(dir);
   const MicroCharacter c = read_micro(data);
 
@@ -148,7 +148,7 @@ TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
   test::use_one_thread();
   const std::string dir = write_fresh_bundle("step_bundle");
   const std::string data = test::test_directory("step_data") + "/micro.h5";
-  test::write_micro_dataset(data, {200, 12, 1});
+  test::write_micro_dataset(data, {200, 12, 1, {}});
   const ModelBundle bundle = load_model_bundle(dir);
   const MicroCharacter c = read_micro(data);
   BindOptions options;
