@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
 #include "infer/bind_cache_torch.h"
+#include "train/checkpoint.h"
 
 namespace amt {
 
@@ -94,17 +94,7 @@ void save_bind(const std::string& path, const std::string& key, const BoundChara
     const at::Tensor& t = bound.*member;
     if (t.defined()) archive.write(name, t.clone());  // clone: inference tensors cannot be saved as views
   }
-  create_parent_folder(path);
-  const std::string temporary = temporary_path(path);
-  try {
-    archive.save_to(temporary);
-  } catch (const std::exception& e) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
-    std::string what = e.what();
-    fail(temporary, ": cannot write the bind cache (", what.substr(0, what.find('\n')), ")");
-  }
-  replace_with_temporary(temporary, path);
+  save_archive_atomically(archive, path, "bind cache");
 }
 
 bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason) {

@@ -181,6 +181,11 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
     archive.write("optimizer", optimizer_archive);
   }
 
+  save_archive_atomically(archive, path, "checkpoint");
+}
+
+void save_archive_atomically(torch::serialize::OutputArchive& archive, const std::string& path,
+                             const std::string& what) {
   create_parent_folder(path);
   const std::string temporary = temporary_path(path);
   try {
@@ -188,7 +193,7 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
   } catch (const std::exception& e) {
     std::error_code ignored;
     std::filesystem::remove(temporary, ignored);
-    fail(temporary, ": cannot write the checkpoint (", first_line(e), ")");
+    fail(temporary, ": cannot write the ", what, " (", first_line(e), ")");
   }
   replace_with_temporary(temporary, path);
 }

@@ -15,6 +15,7 @@
 // step are a function of (seed, step) alone (train/samples.h), so step and seed resume a run exactly.
 #include <torch/nn/module.h>
 #include <torch/optim/optimizer.h>
+#include <torch/serialize/output-archive.h>
 
 #include <cstdint>
 #include <optional>
@@ -64,6 +65,11 @@ struct CheckpointInfo {
 /// to `path` (through "<path>.tmp", then renamed). Throws amt::Error when the file cannot be written.
 void save_checkpoint(const std::string& path, const CheckpointInfo& info, const torch::nn::Module& model,
                      const torch::optim::Optimizer* optimizer);
+
+/// Saves `archive` to `path` through "<path>.tmp", renamed when complete (the parent folder is created).
+/// Throws amt::Error "<path>.tmp: cannot write the <what> (reason)" and removes the temporary on failure.
+void save_archive_atomically(torch::serialize::OutputArchive& archive, const std::string& path,
+                             const std::string& what);
 
 /// Reads the info of a checkpoint without touching any model, checking the format, the version and,
 /// when `expected_kind` is given, the kind. Errors name the file and the key:
