@@ -3,7 +3,7 @@
 # predictor with its two Table 4 variants (no_geodesic, sorted), and the apparel module + refiner
 # end to end, in about half an hour on this 2-core machine. Writes <OUT_DIR>/<module>.ckpt and
 # <OUT_DIR>/<module>.csv (segmenter, skinning, skinning_no_geodesic, skinning_sorted, apparel +
-# refiner with the log apparel_refiner.csv), about 1 MB of checkpoints in all, and prints the step
+# refiner with the log apparel_refiner.csv), about 1.8 MB of checkpoints in all, and prints the step
 # time, throughput and wall time of each module.
 #
 #   scripts/train_pretrained.sh DATA_DIR [OUT_DIR=models/pretrained]
