@@ -86,6 +86,18 @@ void add_train_command(CLI::App& app) {
   train->add_option("--seed", o.seed, "Seed of the initialisation and the sample order")->capture_default_str();
   train->add_option("--lr", o.learning_rate, "AdamW learning rate")->capture_default_str();
   train->add_option("--weight-decay", o.weight_decay, "AdamW weight decay")->capture_default_str();
+  train
+      ->add_option("--lr-schedule", o.lr_schedule, "constant (the paper's) or cosine (decays to 0 at --lr-decay-steps)")
+      ->check(CLI::IsMember({"constant", "cosine"}))
+      ->capture_default_str();
+  train->add_option("--lr-decay-steps", o.lr_decay_steps,
+                    "Step at which the cosine schedule reaches 0 (0: --steps of the run that starts)")
+      ->capture_default_str();
+  train
+      ->add_option("--weight-loss", o.weights.skinning_weights,
+                   "skinning: weight of a direct KL loss against the ground-truth weights (0: the paper's "
+                   "indirect supervision through LBS only)")
+      ->capture_default_str();
   train->add_option("--batch", o.batch, "Samples per step")->capture_default_str();
   train->add_option("--window", o.window, "Frames per apparel / refiner window (3 history + targets)")
       ->capture_default_str();

@@ -286,6 +286,28 @@ std::vector<int32_t> joint_anchor_vertices(const MatrixX3f& V, const MatrixX3f& 
   return anchors;
 }
 
+std::vector<int32_t> nearest_listed_vertices(const MatrixX3f& V, const std::vector<int32_t>& candidates,
+                                             const std::vector<int32_t>& queries) {
+  AMT_CHECK(!candidates.empty(), "nearest_listed_vertices: candidates: expected at least 1 vertex, found 0");
+  for (const std::vector<int32_t>* list : {&candidates, &queries}) {
+    for (const int32_t i : *list) {
+      AMT_CHECK(i >= 0 && i < V.rows(), "nearest_listed_vertices: expected vertex indices in [0, ", V.rows(),
+                "), found ", i);
+    }
+  }
+  check_finite_rows(V, "nearest_listed_vertices", "vertices");
+  const VertexCloud cloud{V, &candidates};
+  const VertexTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize));
+  std::vector<int32_t> nearest(queries.size());
+  for (size_t q = 0; q < queries.size(); ++q) {
+    const Eigen::Vector3f p = V.row(queries[q]);
+    NearestResult result;
+    find_nearest(tree, p, result);
+    nearest[q] = candidates[static_cast<size_t>(result.index())];
+  }
+  return nearest;
+}
+
 MatrixX2i component_bridges(const MatrixX3f& V, const MatrixX2i& E) {
   check_finite_rows(V, "component_bridges", "vertices");
   for (Eigen::Index e = 0; e < E.rows(); ++e) {

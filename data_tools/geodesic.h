@@ -17,6 +17,11 @@ namespace amt {
 /// way on every run (by the KD-tree's fixed traversal order).
 std::vector<int32_t> joint_anchor_vertices(const MatrixX3f& V, const MatrixX3f& joints);
 
+/// For each vertex listed in `queries`, the index (into V) of the Euclidean-nearest vertex listed in
+/// `candidates` (at least one); ties go to the earlier candidate. Indices must be in [0, #V).
+std::vector<int32_t> nearest_listed_vertices(const MatrixX3f& V, const std::vector<int32_t>& candidates,
+                                             const std::vector<int32_t>& queries);
+
 // === Bridged edge graph
 
 /// An undirected graph with positive edge weights in compressed (CSR) form, like Adjacency: the

@@ -31,6 +31,7 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"apparel_neighbors", &BoundCharacter::apparel_neighbors},
           {"G_body", &BoundCharacter::G_body},
           {"body_weights", &BoundCharacter::body_weights},
+          {"apparel_anchor_weights", &BoundCharacter::apparel_anchor_weights},
           {"vertex_weights", &BoundCharacter::vertex_weights}};
 }
 
@@ -125,7 +126,7 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     if (archive.try_read(name, t)) loaded.*member = t;
   }
   for (const char* required : {"V", "faces", "joints", "edges", "apparel_mask", "refiner_prob", "apparel_ids",
-                               "body_ids", "apparel_neighbors", "body_weights"}) {
+                               "body_ids", "apparel_neighbors", "body_weights", "apparel_anchor_weights"}) {
     at::Tensor t;
     if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
   }

@@ -2,7 +2,10 @@
 
 #include <ATen/ATen.h>
 
+#include <algorithm>
 #include <string>
+
+#include "data_tools/geodesic.h"
 
 #include "models/pointnet.h"
 
@@ -21,7 +24,7 @@ ApparelDisplacementNetImpl::ApparelDisplacementNetImpl(ApparelDisplacementOption
   motion_options.activate_last = true;
   motion_encoder_ = register_module("motion_encoder", Mlp(motion_options));
 
-  int64_t channels = 9 + options.motion_code;
+  int64_t channels = 9 + (options.skinned_anchor ? 3 : 0) + options.motion_code;
   for (size_t l = 0; l < options.edge_widths.size(); ++l) {
     EdgeConvOptions block(channels, options.edge_widths[l]);
     block.negative_slope = options.negative_slope;
@@ -35,10 +38,12 @@ ApparelDisplacementNetImpl::ApparelDisplacementNetImpl(ApparelDisplacementOption
   decoder.push_back(3);
   MlpOptions decoder_options(decoder);
   decoder_options.negative_slope = options.negative_slope;
+  decoder_options.zero_last = options.skinned_anchor && options.zero_init;
   decoder_ = register_module("decoder", Mlp(decoder_options));
 }
 
-at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const at::Tensor& joint_transforms) {
+at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const at::Tensor& joint_transforms,
+                                                const at::Tensor& anchor) {
   const int64_t B = history.size(0), N = history.size(2), J = options.num_joints;
   const at::Tensor a3 = history.select(1, 0), a2 = history.select(1, 1), a1 = history.select(1, 2);  // A^(t-3..t-1)
   const at::Tensor velocity = a1 - a2;                  // discrete Ȧ^(t-1)
@@ -52,16 +57,26 @@ at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const
                       (joint_transforms.select(3, 3) - root.unsqueeze(1)).unsqueeze(3)}, 3);
   }
   const at::Tensor code = motion_encoder_->forward(motion.reshape({B, J * 12}));  // f_t(T^(t)), (B, K)
-  // eq. (12): H = A ⊕ Ȧ ⊕ Ä ⊕ f_t(T), the global code broadcast to every apparel vertex.
-  return at::cat({position, options.velocity_scale * velocity, options.velocity_scale * acceleration,
-                  code.unsqueeze(1).expand({B, N, options.motion_code})},
-                 2);
+  // eq. (12): H = A ⊕ Ȧ ⊕ Ä [⊕ S - A] ⊕ f_t(T), the global code broadcast to every apparel vertex.
+  std::vector<at::Tensor> channels = {position, options.velocity_scale * velocity,
+                                      options.velocity_scale * acceleration};
+  if (options.skinned_anchor) channels.push_back(options.velocity_scale * (anchor - a1));
+  channels.push_back(code.unsqueeze(1).expand({B, N, options.motion_code}));
+  return at::cat(channels, 2);
 }
 
 at::Tensor ApparelDisplacementNetImpl::forward(const at::Tensor& history, const at::Tensor& joint_transforms,
-                                               const at::Tensor& neighbors) {
+                                               const at::Tensor& neighbors, const at::Tensor& anchor) {
   const bool unbatched = history.dim() == 3;
   const at::Tensor h = batched(history, 3), T = batched(joint_transforms, 3);
+  at::Tensor S;
+  if (options.skinned_anchor) {
+    TORCH_CHECK(anchor.defined(), "ApparelDisplacementNet: this network needs the skinned anchor S^(t)");
+    S = batched(anchor, 2);
+    TORCH_CHECK(S.dim() == 3 && S.size(0) == h.size(0) && S.size(1) == h.size(2) && S.size(2) == 3,
+                "ApparelDisplacementNet: anchor must be (", h.size(2), ", 3) or (", h.size(0), ", ", h.size(2),
+                ", 3), got ", anchor.sizes());
+  }
   const int64_t J = options.num_joints;
   TORCH_CHECK(h.dim() == 4 && h.size(1) == 3 && h.size(3) == 3, "ApparelDisplacementNet: history must be (3, N_a, 3) "
               "or (B, 3, N_a, 3), got ", history.sizes());
@@ -70,19 +85,20 @@ at::Tensor ApparelDisplacementNetImpl::forward(const at::Tensor& history, const 
               ", 3, 4), got ", joint_transforms.sizes());
   TORCH_CHECK(neighbors.dim() == 2 && neighbors.size(0) == h.size(2), "ApparelDisplacementNet: neighbors must be (",
               h.size(2), ", K_max), got ", neighbors.sizes());
-  at::Tensor x = features(h, T);                                 // (B, N_a, 9 + K)
+  at::Tensor x = features(h, T, S);                              // (B, N_a, 9 [+ 3] + K)
   for (auto& block : blocks_) x = block->forward(x, neighbors);  // eq. (13)
-  const at::Tensor delta = options.output_scale * decoder_->forward(x);  // (B, N_a, 3)
+  at::Tensor delta = options.output_scale * decoder_->forward(x);  // (B, N_a, 3)
+  if (options.skinned_anchor) delta = delta + (S - h.select(1, 2));
   return unbatched ? delta.squeeze(0) : delta;
 }
 
 at::Tensor ApparelDisplacementNetImpl::step(const at::Tensor& history, const at::Tensor& joint_transforms,
-                                            const at::Tensor& neighbors) {
-  return history.select(-3, 2) + forward(history, joint_transforms, neighbors);  // eq. (11)
+                                            const at::Tensor& neighbors, const at::Tensor& anchor) {
+  return history.select(-3, 2) + forward(history, joint_transforms, neighbors, anchor);  // eq. (11)
 }
 
 at::Tensor ApparelDisplacementNetImpl::rollout(const at::Tensor& initial, const at::Tensor& joint_transforms,
-                                               const at::Tensor& neighbors) {
+                                               const at::Tensor& neighbors, const at::Tensor& anchors) {
   const bool unbatched = initial.dim() == 3;
   at::Tensor history = batched(initial, 3);        // (B, 3, N_a, 3)
   const at::Tensor T = batched(joint_transforms, 4);  // (B, T, J, 3, 4)
@@ -91,15 +107,49 @@ at::Tensor ApparelDisplacementNetImpl::rollout(const at::Tensor& initial, const 
   TORCH_CHECK(T.dim() == 5 && T.size(0) == history.size(0), "ApparelDisplacementNet::rollout: joint_transforms must "
               "be (T, J, 3, 4) or (B, T, J, 3, 4), got ", joint_transforms.sizes());
   TORCH_CHECK(T.size(1) > 0, "ApparelDisplacementNet::rollout: needs at least one frame");
+  at::Tensor S;
+  if (options.skinned_anchor) {
+    TORCH_CHECK(anchors.defined(), "ApparelDisplacementNet::rollout: this network needs the skinned anchors");
+    S = batched(anchors, 3);
+    TORCH_CHECK(S.dim() == 4 && S.size(0) == T.size(0) && S.size(1) == T.size(1), "ApparelDisplacementNet::rollout: "
+                "anchors must be (T, N_a, 3) or (B, T, N_a, 3) like joint_transforms, got ", anchors.sizes());
+  }
   std::vector<at::Tensor> frames;
   frames.reserve(static_cast<size_t>(T.size(1)));
   for (int64_t t = 0; t < T.size(1); ++t) {
-    const at::Tensor next = step(history, T.select(1, t), neighbors);  // (B, N_a, 3)
+    const at::Tensor next = step(history, T.select(1, t), neighbors, S.defined() ? S.select(1, t) : S);  // (B, N_a, 3)
     frames.push_back(next);
     history = at::cat({history.narrow(1, 1, 2), next.unsqueeze(1)}, 1);
   }
   const at::Tensor out = at::stack(frames, 1);  // (B, T, N_a, 3)
   return unbatched ? out.squeeze(0) : out;
+}
+
+at::Tensor apparel_anchor_weights(const at::Tensor& V, const at::Tensor& apparel_ids, const at::Tensor& body_ids,
+                                  const at::Tensor& body_weights) {
+  TORCH_CHECK(V.dim() == 2 && V.size(1) == 3, "apparel_anchor_weights: V must be (N, 3), got ", V.sizes());
+  TORCH_CHECK(body_weights.dim() == 2 && body_weights.size(0) == body_ids.size(0),
+              "apparel_anchor_weights: body_weights must be (", body_ids.size(0), ", J), got ", body_weights.sizes());
+  const int64_t N_a = apparel_ids.size(0), J = body_weights.size(1);
+  if (body_ids.size(0) == 0) {
+    at::Tensor W = at::zeros({N_a, J}, body_weights.options());
+    if (J > 0) W.select(1, 0).fill_(1.0);
+    return W;
+  }
+  const at::Tensor Vc = V.to(at::kFloat).contiguous();
+  const MatrixX3f V_e = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>>(
+      Vc.data_ptr<float>(), Vc.size(0), 3);
+  const auto ids = [](const at::Tensor& t) {
+    const at::Tensor c = t.to(at::kLong).contiguous();
+    return std::vector<int32_t>(c.data_ptr<int64_t>(), c.data_ptr<int64_t>() + c.numel());
+  };
+  const std::vector<int32_t> body = ids(body_ids);
+  const std::vector<int32_t> nearest = nearest_listed_vertices(V_e, body, ids(apparel_ids));
+  // nearest holds vertex indices; body_weights rows are positions in body_ids (ascending).
+  std::vector<int64_t> rows(nearest.size());
+  for (size_t i = 0; i < nearest.size(); ++i)
+    rows[i] = std::lower_bound(body.begin(), body.end(), nearest[i]) - body.begin();
+  return body_weights.index_select(0, at::tensor(rows, at::kLong));
 }
 
 }  // namespace amt

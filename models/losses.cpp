@@ -58,13 +58,26 @@ at::Tensor displacement_l2_loss(const at::Tensor& delta) {
 }
 
 LossTerms body_loss(const at::Tensor& B_hat, const at::Tensor& B_gt, const at::Tensor& B_rest, const at::Tensor& edges,
-                    const at::Tensor& W, const LossWeights& weights) {
+                    const at::Tensor& W, const LossWeights& weights, const at::Tensor& logits,
+                    const at::Tensor& W_gt) {
   LossTerms out;
   out.vertex = vertex_l1_loss(B_hat, B_gt);
   out.edge = edge_length_loss(B_hat, B_rest, edges);
   out.smoothness = weight_smoothness_loss(W, edges);
   out.total = weights.vertex * out.vertex + weights.edge * out.edge + weights.smoothness * out.smoothness;
+  if (logits.defined() && W_gt.defined()) {
+    out.weights = skinning_weight_kl_loss(logits, W_gt);
+    out.total = out.total + weights.skinning_weights * out.weights;
+  }
   return out;
+}
+
+at::Tensor skinning_weight_kl_loss(const at::Tensor& logits, const at::Tensor& W_gt) {
+  TORCH_CHECK(logits.sizes() == W_gt.sizes(), "skinning_weight_kl_loss: logits ", logits.sizes(), " and W_gt ",
+              W_gt.sizes(), " differ");
+  const at::Tensor target = W_gt.to(logits.scalar_type());
+  // xlogy gives 0 log 0 = 0, so joints without ground-truth weight cost nothing.
+  return (at::xlogy(target, target) - target * at::log_softmax(logits, -1)).sum(-1).mean();
 }
 
 LossTerms apparel_loss(const at::Tensor& A_hat, const at::Tensor& A_gt, const at::Tensor& A_rest,

@@ -30,6 +30,12 @@ at::Tensor edge_length_loss(const at::Tensor& pred, const at::Tensor& rest, cons
 ///   W (N, J) or (B, N, J); edges (E, 2) int64.
 at::Tensor weight_smoothness_loss(const at::Tensor& W, const at::Tensor& edges, double eps = 1e-12);
 
+/// Direct supervision of the skinning weights (not in the paper, which supervises W only through
+/// LBS, eq. 8-10): mean over vertices of KL(W̄_i || W_i) = sum_j W̄_ij (log W̄_ij - log W_ij), from
+/// the logits (W = softmax(logits)); 0 when the prediction equals the ground truth.
+///   logits (..., N, J); W_gt (..., N, J) rows summing to 1.
+at::Tensor skinning_weight_kl_loss(const at::Tensor& logits, const at::Tensor& W_gt);
+
 /// Section 4.4, the refiner's L2 regulariser L_r: mean over vertices (and frames) of |ΔV_i|^2.
 ///   delta (..., N, 3).
 at::Tensor displacement_l2_loss(const at::Tensor& delta);
@@ -46,6 +52,11 @@ struct LossWeights {
   double smoothness = 0.01;
   /// λ_r: the refiner's L2 regulariser on ΔV.
   double regularizer = 0.01;
+  /// λ_w: direct skinning weight supervision (skinning_weight_kl_loss). 0, the paper's setting,
+  /// supervises the weights only through the skinned vertices. The indirect loss sees a joint's
+  /// weights only where that joint bends in the window, so it learns slowly; a small λ_w gives
+  /// every vertex a dense signal from the dataset's ground-truth weights.
+  double skinning_weights = 0.0;
 };
 
 /// A weighted sum and its unweighted terms (terms a module does not use are undefined).
@@ -55,13 +66,17 @@ struct LossTerms {
   at::Tensor edge;
   at::Tensor smoothness;
   at::Tensor regularizer;
+  at::Tensor weights;
 };
 
-/// L_b = λ_v L_vb + λ_e L_eb + λ_s L_s (section 4.2):
+/// L_b = λ_v L_vb + λ_e L_eb + λ_s L_s (section 4.2), plus λ_w times the weight KL when logits and
+/// W_gt are given (the weights term is always computed then, so logs show it even at λ_w = 0):
 ///   B_hat, B_gt (T, N_b, 3) skinned and ground-truth body; B_rest (N_b, 3); edges (E_b, 2) among
-///   body vertices; W (N_b, J) predicted weights.
+///   body vertices; W (N_b, J) predicted weights; logits (N_b, J) with W = softmax(logits) and
+///   W_gt (N_b, J) ground-truth weights, or both undefined.
 LossTerms body_loss(const at::Tensor& B_hat, const at::Tensor& B_gt, const at::Tensor& B_rest, const at::Tensor& edges,
-                    const at::Tensor& W, const LossWeights& weights = {});
+                    const at::Tensor& W, const LossWeights& weights = {}, const at::Tensor& logits = {},
+                    const at::Tensor& W_gt = {});
 
 /// L_a = λ_v L_va + λ_e L_ea (section 4.3):
 ///   A_hat, A_gt (..., N_a, 3); A_rest (N_a, 3); edges (E_a, 2) of the apparel graph.

@@ -48,6 +48,8 @@ void visit(ApparelDisplacementOptions& o, Visitor&& v) {
   v("velocity_scale", o.velocity_scale);
   v("output_scale", o.output_scale);
   v("naive_edge_conv", o.naive_edge_conv);
+  v("skinned_anchor", o.skinned_anchor);
+  v("zero_init", o.zero_init);
 }
 
 template <typename Visitor>

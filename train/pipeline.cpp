@@ -235,6 +235,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: weights: expected (", N, ", ", J, "), found ", options.weights.sizes());
     c.vertex_weights = options.weights.to(at::kFloat).contiguous();
     c.body_weights = c.vertex_weights.index_select(0, c.body_ids);
+    c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
     return c;
   }
   SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
@@ -244,6 +245,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   } else {
     c.body_weights = at::zeros({0, J}, at::kFloat);
   }
+  c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
   if (options.all_vertex_weights) {
     // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body
     // only" and "body + apparel" skin the body identically (Table 3).
@@ -311,6 +313,11 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
   } else {
     lbs_rest_ = character_.V.index_select(0, character_.body_ids);
     lbs_weights_ = character_.body_weights;
+    if (bundle_.apparel->options.skinned_anchor && character_.num_apparel() > 0) {
+      // One LBS call skins the body (B̂) and the apparel's anchor S^(t): rows N_b.. are S.
+      lbs_rest_ = at::cat({lbs_rest_, character_.V.index_select(0, character_.apparel_ids)}, 0);
+      lbs_weights_ = at::cat({lbs_weights_, character_.apparel_anchor_weights}, 0);
+    }
   }
   reset(history);
 }
@@ -346,9 +353,12 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
     if (times) *times = StepTimes{seconds(t0, t1), 0.0, 0.0};
     return out;
   }
-  out.B_hat = skinned;
+  const int64_t N_b = character_.num_body();
+  out.B_hat = skinned.narrow(0, 0, N_b);
   if (character_.num_apparel() > 0) {
-    out.A_hat = bundle_.apparel.ptr()->step(history_, T.squeeze(0), character_.apparel_neighbors);  // eq. (11)
+    const at::Tensor anchor = skinned.size(0) > N_b ? skinned.narrow(0, N_b, skinned.size(0) - N_b) : at::Tensor();
+    out.A_hat =
+        bundle_.apparel.ptr()->step(history_, T.squeeze(0), character_.apparel_neighbors, anchor);  // eq. (11)
     history_ = at::cat({history_.narrow(0, 1, 2), out.A_hat.unsqueeze(0)}, 0);
   } else {
     out.A_hat = at::zeros({0, 3}, at::kFloat);

@@ -113,6 +113,9 @@ struct BoundCharacter {
   at::Tensor G_body;
   /// body_weights (N_b, J) float skinning weights of the body vertices, rows sum to 1.
   at::Tensor body_weights;
+  /// apparel_anchor_weights (N_a, J) float: each apparel vertex's nearest body vertex's row of
+  /// body_weights (apparel_anchor_weights), which skin the apparel network's anchor S^(t).
+  at::Tensor apparel_anchor_weights;
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;

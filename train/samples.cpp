@@ -12,6 +12,7 @@
 #include "data_tools/error.h"
 #include "data_tools/geodesic.h"
 #include "data_tools/mesh.h"
+#include "models/apparel_displacement.h"
 #include "models/edge_conv.h"
 
 namespace amt {
@@ -225,6 +226,8 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->body_edges = induced_edges(N, t->edges, t->body_ids);
     t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
+    t->apparel_anchor_weights =
+        apparel_anchor_weights(t->V, t->apparel_ids, t->body_ids, t->body_weights.index_select(0, t->body_ids));
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.
       std::vector<int32_t> body_index(N, -1);

@@ -56,6 +56,9 @@ struct CharacterTensors {
   at::Tensor apparel_edges;
   /// apparel_neighbors (N_a, K_max) int64 neighbour table of the apparel graph (neighbor_table).
   at::Tensor apparel_neighbors;
+  /// apparel_anchor_weights (N_a, J) float: the ground-truth weights of each apparel vertex's nearest
+  /// body vertex (apparel_anchor_weights), which skin the apparel network's anchor S^(t).
+  at::Tensor apparel_anchor_weights;
   /// G_body (N_b, J) float geodesic distances (metres) over the body mesh, the faces whose three
   /// vertices are body vertices (geodesic_distances); computed only for the skinning module, else undefined.
   at::Tensor G_body;

@@ -43,6 +43,8 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["seed"] = o.seed;
   j["learning_rate"] = o.learning_rate;
   j["weight_decay"] = o.weight_decay;
+  j["lr_schedule"] = o.lr_schedule;
+  j["lr_decay_steps"] = o.lr_decay_steps;
   j["batch"] = o.batch;
   j["window"] = o.window;
   j["skinning_frames"] = o.skinning_frames;
@@ -50,7 +52,8 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["weights"] = {{"vertex", o.weights.vertex},
                   {"edge", o.weights.edge},
                   {"smoothness", o.weights.smoothness},
-                  {"regularizer", o.weights.regularizer}};
+                  {"regularizer", o.weights.regularizer},
+                  {"skinning_weights", o.weights.skinning_weights}};
   if (!o.skinning_checkpoint.empty()) j["skinning_checkpoint"] = o.skinning_checkpoint;
   return j.dump();
 }
@@ -77,6 +80,12 @@ void config_from_json(const std::string& text, const std::string& path, const ch
       skinning != j.end() && skinning->is_string() && o.skinning_checkpoint.empty()) {
     o.skinning_checkpoint = skinning->get<std::string>();
   }
+  // Configs written before these settings existed ran with their defaults.
+  if (const auto schedule = j.find("lr_schedule"); schedule != j.end()) {
+    AMT_CHECK(schedule->is_string(), path, ": config.lr_schedule: expected a string, found ", schedule->dump());
+    o.lr_schedule = schedule->get<std::string>();
+  }
+  if (j.contains("lr_decay_steps")) get(j, "lr_decay_steps", o.lr_decay_steps, "");
   get(j, "seed", o.seed, "");
   get(j, "learning_rate", o.learning_rate, "");
   get(j, "weight_decay", o.weight_decay, "");
@@ -90,6 +99,15 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   get(*weights, "edge", o.weights.edge, "weights.");
   get(*weights, "smoothness", o.weights.smoothness, "weights.");
   get(*weights, "regularizer", o.weights.regularizer, "weights.");
+  if (weights->contains("skinning_weights")) get(*weights, "skinning_weights", o.weights.skinning_weights, "weights.");
+}
+
+// The learning rate of the 0-based `step` under o.lr_schedule.
+double learning_rate_at(const TrainOptions& o, int64_t step) {
+  if (o.lr_schedule != "cosine") return o.learning_rate;
+  constexpr double kPi = 3.14159265358979323846;
+  const double D = static_cast<double>(o.lr_decay_steps);
+  return o.learning_rate * 0.5 * (1.0 + std::cos(kPi * std::min(static_cast<double>(step), D) / D));
 }
 
 // === Modules and their losses
@@ -167,6 +185,22 @@ at::Tensor skinned_body(SkinningPredictor& skinning, const CharacterTensors& c, 
   return linear_blend_skinning(V_b, W, motion, c.joints);
 }
 
+// S (T, N_a, 3): the rest apparel skinned to `motion` with the weights of the nearest body vertices
+// (ApparelDisplacementOptions::skinned_anchor), from the same body weights as skinned_body; undefined
+// for a network without the anchor. No gradient.
+at::Tensor apparel_anchors(const ApparelDisplacementNet& apparel, SkinningPredictor& skinning,
+                           const CharacterTensors& c, const at::Tensor& motion) {
+  if (!apparel->options.skinned_anchor) return {};
+  torch::NoGradGuard frozen;
+  const at::Tensor A_rest = c.V.index_select(0, c.apparel_ids);
+  at::Tensor W = c.apparel_anchor_weights;
+  if (!skinning.is_empty()) {
+    const at::Tensor W_b = skinning->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body);
+    W = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, W_b);
+  }
+  return linear_blend_skinning(A_rest, W, motion, c.joints);
+}
+
 // `resumed` holds the info of each part's resumed checkpoint in the order the parts are made
 // (empty for a fresh run).
 Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInfo>& resumed,
@@ -198,7 +232,8 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       if (c.apparel_ids.size(0) > 0) {
         // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
         const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (T, N_a, 3)
-        A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors);
+        A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
+                                 apparel_anchors(apparel, skinning, c, motion));
         la = apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
       }
       const at::Tensor tiled = tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
@@ -224,14 +259,15 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       SkinningPredictor net(joint_network_options(info(0), path(0), o.networks.skinning, J));
       task.parts.push_back(
           make_part(kind, skinning_file_stem(net->options.variant), net, options_to_json(net->options)));
-      task.terms = {"vertex", "edge", "smoothness"};
+      task.terms = {"vertex", "edge", "smoothness", "weights"};
       task.loss = [net, w](const TrainingSample& s) mutable {
         const CharacterTensors& c = *s.character;
         const at::Tensor V_b = c.V.index_select(0, c.body_ids);
-        const at::Tensor W = net->forward(V_b, c.joints, c.G_body);
-        const at::Tensor B_hat = linear_blend_skinning(V_b, W, s.joint_transforms, c.joints);  // eq. (4)
-        const LossTerms l = body_loss(B_hat, s.vertices.index_select(1, c.body_ids), V_b, c.body_edges, W, w);
-        return std::vector<at::Tensor>{l.total, l.vertex, l.edge, l.smoothness};
+        const SkinningOutput out = net->forward_detailed(V_b, c.joints, c.G_body);
+        const at::Tensor B_hat = linear_blend_skinning(V_b, out.W, s.joint_transforms, c.joints);  // eq. (4)
+        const LossTerms l = body_loss(B_hat, s.vertices.index_select(1, c.body_ids), V_b, c.body_edges, out.W, w,
+                                      out.logits, c.body_weights.index_select(0, c.body_ids));
+        return std::vector<at::Tensor>{l.total, l.vertex, l.edge, l.smoothness, l.weights};
       };
       break;
     }
@@ -243,9 +279,11 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         const CharacterTensors& c = *s.character;
         const int64_t T = s.vertices.size(0);
         const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (T, N_a, 3)
+        const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
+        SkinningPredictor ground_truth_weights{nullptr};
         // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
-        const at::Tensor A_hat =
-            net->rollout(A.narrow(0, 0, 3), s.joint_transforms.narrow(0, 3, T - 3), c.apparel_neighbors);
+        const at::Tensor A_hat = net->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
+                                              apparel_anchors(net, ground_truth_weights, c, motion));
         const LossTerms l =
             apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
         return std::vector<at::Tensor>{l.total, l.vertex, l.edge};
@@ -268,7 +306,8 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         if (c.apparel_ids.size(0) > 0) {
           torch::NoGradGuard frozen;
           const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
-          A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors);
+          A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
+                                   apparel_anchors(apparel, skinning, c, motion));
         }
         const at::Tensor tiled =
             tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
@@ -377,6 +416,11 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   AMT_CHECK(o.window >= 4, "--window: expected >= 4 (3 history states and a target), found ", o.window);
   AMT_CHECK(o.skinning_frames >= 1, "--skinning-frames: expected >= 1, found ", o.skinning_frames);
   AMT_CHECK(o.learning_rate > 0, "--lr: expected > 0, found ", o.learning_rate);
+  AMT_CHECK(o.lr_schedule == "constant" || o.lr_schedule == "cosine",
+            "--lr-schedule: expected constant or cosine, found '", o.lr_schedule, "'");
+  AMT_CHECK(o.lr_decay_steps >= 0, "--lr-decay-steps: expected >= 0, found ", o.lr_decay_steps);
+  if (o.lr_decay_steps == 0) o.lr_decay_steps = o.steps;  // a fresh run's default; stored in the config
+  AMT_CHECK(o.weights.skinning_weights >= 0, "--weight-loss: expected >= 0, found ", o.weights.skinning_weights);
   AMT_CHECK(o.steps >= 1, "--steps: expected >= 1, found ", o.steps);
 
   SampleSourceOptions sampling;
@@ -441,7 +485,12 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   double last_validation = std::nan("");
   for (int64_t step = first_step; step < o.steps; ++step) {
     const auto step_start = Clock::now();
-    for (Part& part : task.parts) part.optimizer->zero_grad();
+    const double lr = learning_rate_at(o, step);
+    for (Part& part : task.parts) {
+      for (auto& group : part.optimizer->param_groups())
+        static_cast<torch::optim::AdamWOptions&>(group.options()).lr(lr);
+      part.optimizer->zero_grad();
+    }
     std::vector<double> values(task.terms.size() + 1, 0.0);
     for (int b = 0; b < o.batch; ++b) {
       const TrainingSample sample = loader.next();

@@ -39,6 +39,13 @@ struct TrainOptions {
   /// (run) AdamW learning rate (paper section 5.2) and decoupled weight decay (LibTorch's default).
   double learning_rate = 1e-4;
   double weight_decay = 1e-2;
+  /// (run) Learning-rate schedule: "constant" (the paper's), or "cosine": learning_rate times
+  /// (1 + cos(pi * min(step, D) / D)) / 2, decaying to 0 at step D = lr_decay_steps. The rate is a
+  /// function of the step alone, so a resumed run follows the same schedule.
+  std::string lr_schedule = "constant";
+  /// (run) D of the cosine schedule; 0 takes `steps` of the run that starts (a run meant to stop
+  /// early and resume later gives the final step count here).
+  int64_t lr_decay_steps = 0;
   /// (run) Samples per optimizer step; the loss is their mean (characters differ in size, so each
   /// sample runs through the network on its own).
   int batch = 1;

@@ -1,5 +1,6 @@
 // The apparel displacement network f_d (eq. 11-13): step and rollout shapes, determinism, the
-// factorised EdgeConv against the per-edge one inside the network, and a benchmark (disabled; run
+// skinned anchor (features, the skip to S, nearest-body weights), the factorised EdgeConv against
+// the per-edge one inside the network, and a benchmark (disabled; run
 // with --gtest_also_run_disabled_tests --gtest_filter='*Benchmark*').
 #include "models/apparel_displacement.h"
 
@@ -47,6 +48,9 @@ ApparelDisplacementOptions small_options(int64_t J) {
   o.motion_code = 8;
   o.edge_widths = {16, 16, 32};
   o.decoder_widths = {16};
+  // A zero last layer would make ΔA = S - A^(t-1) whatever the other layers do; random weights
+  // there make the tests see those layers.
+  o.zero_init = false;
   return o;
 }
 
@@ -56,18 +60,20 @@ TEST(ApparelDisplacementNet, StepShapesAndResidualUpdate) {
   const at::Tensor nbr = neighbor_table(20, grid_edges(4, 5));
   const at::Tensor history = at::randn({3, 20, 3});
   const at::Tensor T = random_transforms(1, 5)[0];
-  const at::Tensor delta = net->forward(history, T, nbr);
+  const at::Tensor S = at::randn({20, 3});
+  const at::Tensor delta = net->forward(history, T, nbr, S);
   ASSERT_EQ(delta.sizes(), (at::IntArrayRef{20, 3}));
-  const at::Tensor next = net->step(history, T, nbr);
+  const at::Tensor next = net->step(history, T, nbr, S);
   ASSERT_EQ(next.sizes(), (at::IntArrayRef{20, 3}));
   EXPECT_TRUE(at::allclose(next, history[2] + delta));  // eq. (11)
 
-  // H has 9 + K channels (eq. 12).
-  EXPECT_EQ(net->features(history.unsqueeze(0), T.unsqueeze(0)).sizes(), (at::IntArrayRef{1, 20, 9 + 8}));
+  // H has 9 + 3 + K channels (eq. 12 and the anchor offset S - A^(t-1)).
+  EXPECT_EQ(net->features(history.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0)).sizes(),
+            (at::IntArrayRef{1, 20, 12 + 8}));
 
   // Batched step gives the same rows.
   const at::Tensor other = at::randn({3, 20, 3});
-  const at::Tensor batch = net->step(at::stack({history, other}), at::stack({T, T}), nbr);
+  const at::Tensor batch = net->step(at::stack({history, other}), at::stack({T, T}), nbr, at::stack({S, S}));
   ASSERT_EQ(batch.sizes(), (at::IntArrayRef{2, 20, 3}));
   EXPECT_LT((batch[0] - next).abs().max().item<float>(), 1e-5f);
 }
@@ -80,7 +86,8 @@ TEST(ApparelDisplacementNet, RolloutShapeAndDeterminism) {
     ApparelDisplacementNet net(small_options(J));
     const at::Tensor initial = at::randn({3, N, 3});
     const at::Tensor motion = random_transforms(T, J);
-    return std::make_pair(net->rollout(initial, motion, nbr), net->step(initial, motion[0], nbr));
+    const at::Tensor anchors = at::randn({T, N, 3});
+    return std::make_pair(net->rollout(initial, motion, nbr, anchors), net->step(initial, motion[0], nbr, anchors[0]));
   };
   const auto [first, first_step] = run();
   const auto [second, second_step] = run();
@@ -97,13 +104,15 @@ TEST(ApparelDisplacementNet, RolloutFeedsPredictionsBackAndIsDifferentiable) {
   const at::Tensor nbr = neighbor_table(N, grid_edges(3, 4));
   const at::Tensor initial = at::randn({3, N, 3});
   const at::Tensor motion = random_transforms(T, J);
-  const at::Tensor out = net->rollout(initial, motion, nbr);
+  const at::Tensor anchors = at::randn({T, N, 3});
+  const at::Tensor out = net->rollout(initial, motion, nbr, anchors);
   // Frame 2 equals a step from [initial[2], out[0], out[1]].
   const at::Tensor history = at::stack({initial[2], out[0], out[1]});
-  EXPECT_LT((out[2] - net->step(history, motion[2], nbr)).abs().max().item<float>(), 1e-5f);
+  EXPECT_LT((out[2] - net->step(history, motion[2], nbr, anchors[2])).abs().max().item<float>(), 1e-5f);
   // Batched rollout (B, T, N_a, 3).
-  const at::Tensor batch =
-      net->rollout(initial.unsqueeze(0).expand({2, 3, N, 3}), motion.unsqueeze(0).expand({2, T, J, 3, 4}), nbr);
+  const at::Tensor batch = net->rollout(initial.unsqueeze(0).expand({2, 3, N, 3}),
+                                        motion.unsqueeze(0).expand({2, T, J, 3, 4}), nbr,
+                                        anchors.unsqueeze(0).expand({2, T, N, 3}));
   ASSERT_EQ(batch.sizes(), (at::IntArrayRef{2, T, N, 3}));
   EXPECT_LT((batch[1] - out).abs().max().item<float>(), 1e-5f);
   // Gradients reach every parameter through time.
@@ -128,7 +137,9 @@ TEST(ApparelDisplacementNet, FactorizedAndPerEdgeNetworksAgree) {
   const at::Tensor nbr = neighbor_table(20, grid_edges(4, 5));
   const at::Tensor history = at::randn({3, 20, 3});
   const at::Tensor T = random_transforms(1, 5)[0];
-  EXPECT_LT((fast->forward(history, T, nbr) - naive->forward(history, T, nbr)).abs().max().item<float>(), 1e-5f);
+  const at::Tensor S = at::randn({20, 3});
+  EXPECT_LT((fast->forward(history, T, nbr, S) - naive->forward(history, T, nbr, S)).abs().max().item<float>(),
+            1e-5f);
 }
 
 TEST(ApparelDisplacementNet, RootRelativeFeaturesIgnoreWhereTheCharacterIs) {
@@ -140,16 +151,65 @@ TEST(ApparelDisplacementNet, RootRelativeFeaturesIgnoreWhereTheCharacterIs) {
   const at::Tensor shift = at::tensor({2.0f, 0.0f, -3.0f});
   at::Tensor T_moved = T.clone();
   T_moved.select(2, 3).add_(shift);
-  const at::Tensor a = net->forward(history, T, nbr), b = net->forward(history + shift, T_moved, nbr);
+  const at::Tensor S = at::randn({12, 3});
+  const at::Tensor a = net->forward(history, T, nbr, S), b = net->forward(history + shift, T_moved, nbr, S + shift);
   EXPECT_LT((a - b).abs().max().item<float>(), 1e-5f);
+}
+
+TEST(ApparelDisplacementNet, ZeroDecoderFollowsTheSkinnedAnchor) {
+  // With the decoder's last layer zeroed, ΔA = S - A^(t-1): the apparel moves exactly with the body.
+  torch::manual_seed(7);
+  ApparelDisplacementOptions options = small_options(4);
+  options.zero_init = true;
+  ApparelDisplacementNet net(options);
+  {
+    // A fresh network starts that way (zero-initialised last layer); check that, then the skip alone.
+    torch::NoGradGuard no_grad;
+    for (auto& p : net->named_parameters()) {
+      if (p.key().rfind("decoder.", 0) == 0 && p.value().size(0) == 3) {
+        EXPECT_EQ(p.value().abs().max().item<float>(), 0.0f) << p.key();
+      }
+    }
+  }
+  const at::Tensor nbr = neighbor_table(12, grid_edges(3, 4));
+  const at::Tensor history = at::randn({3, 12, 3}), S = at::randn({12, 3});
+  EXPECT_LT((net->step(history, random_transforms(1, 4)[0], nbr, S) - S).abs().max().item<float>(), 1e-6f);
+}
+
+TEST(ApparelDisplacementNet, WithoutAnchorFeaturesAreEquation12) {
+  ApparelDisplacementOptions options = small_options(4);
+  options.skinned_anchor = false;
+  ApparelDisplacementNet net(options);
+  const at::Tensor history = at::randn({1, 3, 12, 3});
+  EXPECT_EQ(net->features(history, random_transforms(1, 4)).sizes(), (at::IntArrayRef{1, 12, 9 + 8}));
+  const at::Tensor nbr = neighbor_table(12, grid_edges(3, 4));
+  EXPECT_EQ(net->step(history[0], random_transforms(1, 4)[0], nbr).sizes(), (at::IntArrayRef{12, 3}));
+}
+
+TEST(ApparelDisplacementNet, AnchorWeightsComeFromTheNearestBodyVertex) {
+  // Body vertices 0, 2, 3 at x = 0, 1, 2; apparel vertices 1 (x = 1.9) and 4 (x = 0.4).
+  at::Tensor V = at::zeros({5, 3});
+  V.select(1, 0).copy_(at::tensor({0.0f, 1.9f, 1.0f, 2.0f, 0.4f}));
+  const at::Tensor body_ids = at::tensor({0, 2, 3}, at::kLong), apparel_ids = at::tensor({1, 4}, at::kLong);
+  const at::Tensor W_b = at::tensor({1.0f, 0.0f, 0.25f, 0.75f, 0.0f, 1.0f}).view({3, 2});
+  const at::Tensor W_a = apparel_anchor_weights(V, apparel_ids, body_ids, W_b);
+  ASSERT_EQ(W_a.sizes(), (at::IntArrayRef{2, 2}));
+  EXPECT_TRUE(at::equal(W_a[0], W_b[2]));  // 1.9 is nearest to 2.0 (vertex 3)
+  EXPECT_TRUE(at::equal(W_a[1], W_b[0]));  // 0.4 is nearest to 0.0 (vertex 0)
+  // Without body vertices the apparel follows the root.
+  const at::Tensor root = apparel_anchor_weights(V, apparel_ids, at::zeros({0}, at::kLong), at::zeros({0, 2}));
+  EXPECT_TRUE(at::equal(root, at::tensor({1.0f, 0.0f, 1.0f, 0.0f}).view({2, 2})));
 }
 
 TEST(ApparelDisplacementNet, RejectsBadShapes) {
   ApparelDisplacementNet net(small_options(5));
   const at::Tensor nbr = neighbor_table(20, grid_edges(4, 5));
-  EXPECT_THROW(net->forward(at::randn({2, 20, 3}), random_transforms(1, 5)[0], nbr), c10::Error);
-  EXPECT_THROW(net->forward(at::randn({3, 20, 3}), random_transforms(1, 4)[0], nbr), c10::Error);
-  EXPECT_THROW(net->forward(at::randn({3, 19, 3}), random_transforms(1, 5)[0], nbr), c10::Error);
+  const at::Tensor S = at::randn({20, 3});
+  EXPECT_THROW(net->forward(at::randn({2, 20, 3}), random_transforms(1, 5)[0], nbr, S), c10::Error);
+  EXPECT_THROW(net->forward(at::randn({3, 20, 3}), random_transforms(1, 4)[0], nbr, S), c10::Error);
+  EXPECT_THROW(net->forward(at::randn({3, 19, 3}), random_transforms(1, 5)[0], nbr, S), c10::Error);
+  EXPECT_THROW(net->forward(at::randn({3, 20, 3}), random_transforms(1, 5)[0], nbr), c10::Error);  // no anchor
+  EXPECT_THROW(net->forward(at::randn({3, 20, 3}), random_transforms(1, 5)[0], nbr, at::randn({19, 3})), c10::Error);
 }
 
 // Median wall time of `fn` in milliseconds.
@@ -179,18 +239,19 @@ TEST(ApparelDisplacementNet, DISABLED_BenchmarkStep) {
   ApparelDisplacementNet naive(options);
   const at::Tensor history = at::randn({3, N, 3});
   const at::Tensor T = random_transforms(1, J)[0];
+  const at::Tensor S = at::randn({N, 3});
   double fast_ms = 0, naive_ms = 0, loop_ms = 0, eager_ms = 0;
   const at::Tensor values = at::randn({N, 128});
   {
     c10::InferenceMode guard;
-    fast_ms = median_ms([&] { fast->step(history, T, nbr); }, 20);
-    naive_ms = median_ms([&] { naive->step(history, T, nbr); }, 5);
+    fast_ms = median_ms([&] { fast->step(history, T, nbr, S); }, 20);
+    naive_ms = median_ms([&] { naive->step(history, T, nbr, S); }, 5);
     loop_ms = median_ms([&] { gather_max(values, nbr); }, 50);
     eager_ms = median_ms([&] { gather_max_reference(values, nbr); }, 50);
   }
   // Training cost: forward + backward of one step.
-  const double fast_train_ms = median_ms([&] { fast->step(history, T, nbr).sum().backward(); }, 10);
-  const double naive_train_ms = median_ms([&] { naive->step(history, T, nbr).sum().backward(); }, 3);
+  const double fast_train_ms = median_ms([&] { fast->step(history, T, nbr, S).sum().backward(); }, 10);
+  const double naive_train_ms = median_ms([&] { naive->step(history, T, nbr, S).sum().backward(); }, 3);
   std::printf("apparel step, N_a = %lld, K_max = %lld, widths 64/64/128, 1 thread:\n", static_cast<long long>(N),
               static_cast<long long>(nbr.size(1)));
   std::printf("  forward    factorised + C++ gather-max: %8.2f ms   per-edge (eager): %8.2f ms\n", fast_ms, naive_ms);

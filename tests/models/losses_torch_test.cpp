@@ -126,6 +126,38 @@ TEST(Losses, GradientsMatchFiniteDifferences) {
             1e-6);
 }
 
+TEST(Losses, SkinningWeightKlIsHandComputedAndZeroAtTheTruth) {
+  // One vertex, two joints: logits (0, ln 3) give W = (1/4, 3/4); W̄ = (1/2, 1/2):
+  // KL = 1/2 ln(2) + 1/2 ln(2/3) = 1/2 ln(4/3).
+  const at::Tensor logits = at::tensor({0.0, std::log(3.0)}, kDouble).view({1, 2});
+  const at::Tensor half = at::full({1, 2}, 0.5, kDouble);
+  EXPECT_NEAR(skinning_weight_kl_loss(logits, half).item<double>(), 0.5 * std::log(4.0 / 3.0), 1e-12);
+  // A one-hot ground truth: 0 log 0 counts 0, KL = -ln(3/4).
+  const at::Tensor one_hot = at::tensor({0.0, 1.0}, kDouble).view({1, 2});
+  EXPECT_NEAR(skinning_weight_kl_loss(logits, one_hot).item<double>(), -std::log(0.75), 1e-12);
+  // Zero at the truth; the mean over vertices.
+  at::manual_seed(3);
+  const at::Tensor many = at::randn({6, 4}, kDouble);
+  EXPECT_NEAR(skinning_weight_kl_loss(many, at::softmax(many, -1)).item<double>(), 0.0, 1e-12);
+  const at::Tensor two = at::cat({logits, logits}), two_gt = at::cat({half, one_hot});
+  EXPECT_NEAR(skinning_weight_kl_loss(two, two_gt).item<double>(),
+              0.5 * (0.5 * std::log(4.0 / 3.0) - std::log(0.75)), 1e-12);
+  // Gradient by finite differences, and the weighted term in body_loss.
+  const at::Tensor target = at::softmax(at::randn({6, 4}, kDouble), 1);
+  EXPECT_LT(test::max_gradient_error([&](const at::Tensor& x) { return skinning_weight_kl_loss(x, target); }, many),
+            1e-7);
+  const at::Tensor rest = at::randn({6, 3}, kDouble), pred = at::randn({2, 6, 3}, kDouble);
+  const at::Tensor edges = edges_of({0, 1, 1, 2, 2, 3, 3, 4, 4, 5});
+  LossWeights w;
+  w.skinning_weights = 0.5;
+  const LossTerms body = body_loss(pred, pred, rest, edges, at::softmax(many, 1), w, many, target);
+  EXPECT_NEAR(body.total.item<double>(),
+              100 * body.edge.item<double>() + 0.01 * body.smoothness.item<double>() +
+                  0.5 * skinning_weight_kl_loss(many, target).item<double>(),
+              1e-9);
+  EXPECT_THROW(skinning_weight_kl_loss(many, target.narrow(0, 0, 5)), c10::Error);
+}
+
 TEST(Losses, RejectsMismatchedShapes) {
   EXPECT_THROW(vertex_l1_loss(at::zeros({4, 3}), at::zeros({5, 3})), c10::Error);
   EXPECT_THROW(edge_length_loss(at::zeros({4, 3}), at::zeros({5, 3}), edges_of({0, 1})), c10::Error);

@@ -48,7 +48,7 @@ void train_two_steps(ApparelDisplacementNet& net, torch::optim::AdamW& optimizer
   for (int s = 0; s < 2; ++s) {
     optimizer.zero_grad();
     const at::Tensor T = at::cat({at::eye(3).expand({2, 5, 3, 3}), at::randn({2, 5, 3, 1})}, 3);
-    net->rollout(at::randn({3, 4, 3}), T, nbr).abs().mean().backward();
+    net->rollout(at::randn({3, 4, 3}), T, nbr, at::randn({2, 4, 3})).abs().mean().backward();
     optimizer.step();
   }
 }

@@ -1,6 +1,6 @@
 #pragma once
 // A model folder of small, freshly initialised (seeded) networks for the pipeline, evaluation and
-// runtime tests. The refiner starts non-zero, so that it changes the result.
+// runtime tests. The apparel decoder and the refiner start non-zero, so that they change the result.
 #include <torch/utils.h>
 
 #include <cstdint>
@@ -55,6 +55,7 @@ inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t 
   ao.motion_code = 8;
   ao.edge_widths = {16, 16};
   ao.decoder_widths = {16};
+  ao.zero_init = false;
   save_fresh_checkpoint((dir / "apparel.ckpt").string(), ModuleKind::kApparel, ApparelDisplacementNet(ao),
                         options_to_json(ao), joints);
   JointRefinerOptions ro;

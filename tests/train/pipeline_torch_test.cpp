@@ -180,7 +180,9 @@ TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
   // The same through the networks' sequence forms, as the trainer runs them.
   torch::NoGradGuard no_grad;
   const at::Tensor future = motion.narrow(0, 3, T - 3);
-  const at::Tensor A_ref = bundle.apparel.ptr()->rollout(history, future, b.apparel_neighbors);
+  const at::Tensor anchors =
+      linear_blend_skinning(c.V.index_select(0, b.apparel_ids), b.apparel_anchor_weights, future, c.joints);
+  const at::Tensor A_ref = bundle.apparel.ptr()->rollout(history, future, b.apparel_neighbors, anchors);
   const at::Tensor B_ref = linear_blend_skinning(c.V.index_select(0, b.body_ids), b.body_weights, future, c.joints);
   const at::Tensor V_ref =
       bundle.refiner.ptr()->forward(tile_apparel_body(A_ref, B_ref, b.apparel_mask), c.V, c.mask.to(at::kFloat)).V_hat;
