@@ -42,9 +42,17 @@ ApparelDisplacementNetImpl::ApparelDisplacementNetImpl(ApparelDisplacementOption
   decoder_ = register_module("decoder", Mlp(decoder_options));
 }
 
-at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const at::Tensor& joint_transforms,
-                                                const at::Tensor& anchor) {
-  const int64_t B = history.size(0), N = history.size(2), J = options.num_joints;
+namespace {
+
+// The features H of eq. 12 in two parts: the per-vertex channels (B, N_a, 9 [+ 3]) and the global
+// motion code f_t(T^(t)) (B, K), which H broadcasts to every vertex as its last K channels.
+struct FeatureParts {
+  at::Tensor per_vertex, code;
+};
+
+FeatureParts feature_parts(const ApparelDisplacementOptions& options, Mlp& motion_encoder, const at::Tensor& history,
+                           const at::Tensor& joint_transforms, const at::Tensor& anchor) {
+  const int64_t B = history.size(0), J = options.num_joints;
   const at::Tensor a3 = history.select(1, 0), a2 = history.select(1, 1), a1 = history.select(1, 2);  // A^(t-3..t-1)
   const at::Tensor velocity = a1 - a2;                  // discrete Ȧ^(t-1)
   const at::Tensor acceleration = a1 - 2.0 * a2 + a3;  // discrete Ä^(t-1)
@@ -56,13 +64,24 @@ at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const
     motion = at::cat({joint_transforms.narrow(3, 0, 3),
                       (joint_transforms.select(3, 3) - root.unsqueeze(1)).unsqueeze(3)}, 3);
   }
-  const at::Tensor code = motion_encoder_->forward(motion.reshape({B, J * 12}));  // f_t(T^(t)), (B, K)
-  // eq. (12): H = A ⊕ Ȧ ⊕ Ä [⊕ S - A] ⊕ f_t(T), the global code broadcast to every apparel vertex.
+  FeatureParts parts;
+  parts.code = motion_encoder->forward(motion.reshape({B, J * 12}));  // f_t(T^(t)), (B, K)
+  // eq. (12): H = A ⊕ Ȧ ⊕ Ä [⊕ S - A] ⊕ f_t(T); here the channels that differ between vertices.
   std::vector<at::Tensor> channels = {position, options.velocity_scale * velocity,
                                       options.velocity_scale * acceleration};
   if (options.skinned_anchor) channels.push_back(options.velocity_scale * (anchor - a1));
-  channels.push_back(code.unsqueeze(1).expand({B, N, options.motion_code}));
-  return at::cat(channels, 2);
+  parts.per_vertex = at::cat(channels, 2);
+  return parts;
+}
+
+}  // namespace
+
+at::Tensor ApparelDisplacementNetImpl::features(const at::Tensor& history, const at::Tensor& joint_transforms,
+                                                const at::Tensor& anchor) {
+  const FeatureParts parts = feature_parts(options, motion_encoder_, history, joint_transforms, anchor);
+  const int64_t B = history.size(0), N = history.size(2);
+  // eq. (12): the global code broadcast to every apparel vertex.
+  return at::cat({parts.per_vertex, parts.code.unsqueeze(1).expand({B, N, options.motion_code})}, 2);
 }
 
 at::Tensor ApparelDisplacementNetImpl::forward(const at::Tensor& history, const at::Tensor& joint_transforms,
@@ -85,8 +104,11 @@ at::Tensor ApparelDisplacementNetImpl::forward(const at::Tensor& history, const 
               ", 3, 4), got ", joint_transforms.sizes());
   TORCH_CHECK(neighbors.dim() == 2 && neighbors.size(0) == h.size(2), "ApparelDisplacementNet: neighbors must be (",
               h.size(2), ", K_max), got ", neighbors.sizes());
-  at::Tensor x = features(h, T, S);                              // (B, N_a, 9 [+ 3] + K)
-  for (auto& block : blocks_) x = block->forward(x, neighbors);  // eq. (13)
+  // H (eq. 12) as its per-vertex channels (B, N_a, 9 [+ 3]) and the code (B, K): the first block takes
+  // the code once per frame instead of broadcasting it to every vertex (EdgeConv::forward_with_constant).
+  const FeatureParts H = feature_parts(options, motion_encoder_, h, T, S);
+  at::Tensor x = blocks_.front()->forward_with_constant(H.per_vertex, H.code, neighbors);  // eq. (13)
+  for (size_t l = 1; l < blocks_.size(); ++l) x = blocks_[l]->forward(x, neighbors);       // eq. (13)
   at::Tensor delta = options.output_scale * decoder_->forward(x);  // (B, N_a, 3)
   if (options.skinned_anchor) delta = delta + (S - h.select(1, 2));
   return unbatched ? delta.squeeze(0) : delta;

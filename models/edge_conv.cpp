@@ -65,12 +65,38 @@ at::Tensor EdgeConvImpl::forward_factorized(const at::Tensor& h, const at::Tenso
               h.sizes());
   const int64_t C = options.in_channels;
   const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
-  const at::Tensor a = at::linear(h, W1 - W2, edge->bias);  // (..., N, O): (W1 - W2) h_i + b
-  const at::Tensor b = at::linear(h, W2);                   // (..., N, O): W2 h_j, gathered below
-  if (!at::GradMode::is_enabled()) {  // inference: in place on the fresh product, same values
-    at::Tensor out = a;
-    out.add_(gather_max(b, neighbors));
-    return at::leaky_relu_(out, options.negative_slope);  // eq. (13)
+  return factorized(h, W1 - W2, W2, edge->bias, neighbors);
+}
+
+at::Tensor EdgeConvImpl::forward_with_constant(const at::Tensor& h, const at::Tensor& constant,
+                                               const at::Tensor& neighbors) {
+  TORCH_CHECK(h.dim() == 2 || h.dim() == 3, "EdgeConv: h must be (N, C) or (B, N, C), got ", h.sizes());
+  const at::Tensor c = constant.dim() == 1 ? constant.unsqueeze(0) : constant;  // (B or 1, C_const)
+  const int64_t C = options.in_channels, C_h = h.size(-1), B = h.dim() == 3 ? h.size(0) : 1;
+  TORCH_CHECK(c.dim() == 2 && C_h > 0 && C_h + c.size(1) == C && (c.size(0) == B || c.size(0) == 1),
+              "EdgeConv: h ", h.sizes(), " and constant ", constant.sizes(), " must have ", C,
+              " channels together, h at least one, and constant one row or one per batch");
+  if (options.naive) {  // the reference: broadcast the constant channels to every vertex
+    const at::Tensor x = h.dim() == 3 ? h : h.unsqueeze(0);
+    const at::Tensor full = at::cat({x, c.unsqueeze(1).expand({B, x.size(1), c.size(1)})}, 2);
+    const at::Tensor out = forward_naive(full, neighbors);
+    return h.dim() == 3 ? out : out.squeeze(0);
+  }
+  // W [h_i, h_j - h_i] + b with h = [v, c]: the c channels of h_j - h_i vanish, W1c c + b is per frame.
+  const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
+  const at::Tensor W2v = W2.narrow(1, 0, C_h);
+  const at::Tensor shift = at::linear(c, W1.narrow(1, C_h, C - C_h), edge->bias);  // (B or 1, O)
+  return factorized(h, W1.narrow(1, 0, C_h) - W2v, W2v, shift.size(0) == 1 ? shift.squeeze(0) : shift, neighbors);
+}
+
+at::Tensor EdgeConvImpl::factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2,
+                                    const at::Tensor& shift, const at::Tensor& neighbors) {
+  // (..., N, O): Wa h_i + shift, the shift as the product's bias when it is one vector, else one row per batch.
+  at::Tensor a = shift.dim() == 1 ? at::linear(h, Wa, shift) : at::linear(h, Wa) + shift.unsqueeze(-2);
+  const at::Tensor b = at::linear(h, W2);  // (..., N, O): W2 h_j, gathered below
+  if (!at::GradMode::is_enabled()) {       // inference: in place on the fresh product, same values
+    a.add_(gather_max(b, neighbors));
+    return at::leaky_relu_(a, options.negative_slope);  // eq. (13)
   }
   return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
 }

@@ -5,6 +5,10 @@
 // Factorised (DESIGN.md section 1): with W = [W1 | W2], W [h_i, h_j - h_i] + b = (W1 - W2) h_i + b
 // + W2 h_j, so both terms are per-vertex matrix products; and since sigma is monotonic,
 // max_j sigma(a_i + b_j) = sigma(a_i + max_j b_j), a per-vertex product plus one neighbour max.
+// Channels that are the same for every vertex (a global code broadcast to all of them) cancel in
+// h_j - h_i: with h = [v, c] and W1 = [W1v | W1c], W2 = [W2v | W2c], the block is
+// sigma((W1v - W2v) v_i + max_j W2v v_j + W1c c + b), where W1c c + b is one vector per frame
+// (forward_with_constant).
 #include <torch/nn/module.h>
 #include <torch/nn/modules/linear.h>
 #include <torch/nn/pimpl.h>
@@ -54,6 +58,15 @@ class EdgeConvImpl : public torch::nn::Module {
   /// The factorised form: two per-vertex products and gather_max. Shapes as forward.
   at::Tensor forward_factorized(const at::Tensor& h, const at::Tensor& neighbors);
 
+  /// The block on H = [h, c] whose last C_const channels c are the same for every vertex, without
+  /// broadcasting c: the same result as forward(cat(h, c expanded to every vertex)) up to float
+  /// rounding, and the same gradients (in h, c and the weights).
+  ///   h         (B, N, C_in - C_const) or (N, C_in - C_const): the per-vertex channels
+  ///   constant  (B, C_const), or (1, C_const) or (C_const) shared by the batch: C_const in [0, C_in)
+  ///   neighbors (N, K) int64 from neighbor_table
+  /// -> (B, N, C_out) or (N, C_out), batched like h. The naive form broadcasts c and runs forward_naive.
+  at::Tensor forward_with_constant(const at::Tensor& h, const at::Tensor& constant, const at::Tensor& neighbors);
+
   /// The per-edge form: gathers [h_i, h_j - h_i] for every (i, k), applies the edge layer and
   /// sigma, then the max over k. Shapes as forward.
   at::Tensor forward_naive(const at::Tensor& h, const at::Tensor& neighbors);
@@ -62,6 +75,11 @@ class EdgeConvImpl : public torch::nn::Module {
   torch::nn::Linear edge{nullptr};
 
   EdgeConvOptions options;
+
+ private:
+  // sigma(h Wa^T + shift + max_j h_j W2^T): Wa (C_out, C_h), W2 (C_out, C_h), shift (C_out) or (B, C_out).
+  at::Tensor factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2, const at::Tensor& shift,
+                        const at::Tensor& neighbors);
 };
 TORCH_MODULE(EdgeConv);
 

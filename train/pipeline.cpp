@@ -319,6 +319,10 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
       lbs_weights_ = at::cat({lbs_weights_, character_.apparel_anchor_weights}, 0);
     }
   }
+  if (stages_ == PipelineStages::kFull) {
+    c10::InferenceMode inference;
+    refiner_character_ = bundle_.refiner.ptr()->prepare(character_.V, character_.refiner_prob);
+  }
   reset(history);
 }
 
@@ -364,10 +368,11 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
     out.A_hat = at::zeros({0, 3}, at::kFloat);
   }
   const auto t2 = Clock::now();
-  const at::Tensor tiled = tile_apparel_body(out.A_hat, out.B_hat, character_.apparel_mask);
-  out.V_hat = stages_ == PipelineStages::kFull
-                  ? bundle_.refiner.ptr()->forward(tiled, character_.V, character_.refiner_prob).V_hat  // eq. (16)
-                  : tiled;
+  // tile(Â, B̂) (eq. 16) by the bound index lists, which partition the mesh (as tile_apparel_body does by the mask).
+  at::Tensor tiled = at::empty({character_.num_vertices(), 3}, at::kFloat);
+  tiled.index_copy_(0, character_.apparel_ids, out.A_hat).index_copy_(0, character_.body_ids, out.B_hat);
+  out.V_hat = stages_ == PipelineStages::kFull ? bundle_.refiner.ptr()->forward(tiled, refiner_character_).V_hat  // eq. (16)
+                                               : tiled;
   if (times) *times = StepTimes{seconds(t0, t1), seconds(t1, t2), seconds(t2, Clock::now())};
   return out;
 }

@@ -186,7 +186,9 @@ struct StepTimes {
 /// Runs the model frame by frame on one bound character. Holds references to the bundle and the
 /// character (both must outlive the stepper) and the apparel history, the last 3 predicted states.
 /// Every step runs under c10::InferenceMode; outputs are inference tensors (clone() to use them in
-/// autograd). Per frame it does only LBS, the apparel step and the refiner: nothing of bind is redone.
+/// autograd). Per frame it does only LBS, the apparel step and the refiner: nothing of bind is redone,
+/// and the refiner's constant inputs (rest positions, mask) pass its first layer once, at construction
+/// (JointRefinerImpl::prepare), so the refiner's parameters must not change while the stepper is used.
 class PipelineStepper {
  public:
   /// history (3, N_a, 3): A^(t-3), A^(t-2), A^(t-1), oldest first (rest_apparel_history, or ground
@@ -219,6 +221,8 @@ class PipelineStepper {
   int64_t frames_ = 0;
   // Per-character constants of LBS: weights and rest positions of the skinned vertex set.
   at::Tensor lbs_rest_, lbs_weights_;
+  // Per-character constants of the refiner (kFull): its first layer on the rest mesh and the mask.
+  RefinerCharacter refiner_character_;
 };
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).

@@ -1,17 +1,21 @@
 // The apparel displacement network f_d (eq. 11-13): step and rollout shapes, determinism, the
 // skinned anchor (features, the skip to S, nearest-body weights), the factorised EdgeConv against
-// the per-edge one inside the network, and a benchmark (disabled; run
+// the per-edge one inside the network, the network against eq. 12-13 as written (values and
+// gradients), and a benchmark (disabled; run
 // with --gtest_also_run_disabled_tests --gtest_filter='*Benchmark*').
 #include "models/apparel_displacement.h"
 
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
+#include <c10/core/InferenceMode.h>
 #include <gtest/gtest.h>
+#include <torch/csrc/autograd/autograd.h>
 #include <torch/utils.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "models/gather_max.h"
@@ -140,6 +144,78 @@ TEST(ApparelDisplacementNet, FactorizedAndPerEdgeNetworksAgree) {
   const at::Tensor S = at::randn({20, 3});
   EXPECT_LT((fast->forward(history, T, nbr, S) - naive->forward(history, T, nbr, S)).abs().max().item<float>(),
             1e-5f);
+}
+
+// ΔA (N_a, 3) by eq. 11-13 as written, from the network's parameters and PyTorch ops: H = features()
+// with the motion code broadcast to every vertex, each EdgeConv block evaluated per edge on
+// [h_i, h_j - h_i], the decoder, ΔA = output_scale * decoder + S - A^(t-1).
+at::Tensor delta_as_written(ApparelDisplacementNet& net, const at::Tensor& history, const at::Tensor& T,
+                            const at::Tensor& nbr, const at::Tensor& S) {
+  const auto params = net->named_parameters();
+  const ApparelDisplacementOptions& o = net->options;
+  at::Tensor x = net->features(history.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0));  // (1, N, 12 + K)
+  const int64_t N = x.size(1), K = nbr.size(1);
+  for (size_t l = 0; l < o.edge_widths.size(); ++l) {
+    const std::string edge = "edge_conv" + std::to_string(l) + ".edge.";
+    const int64_t C = x.size(2);
+    const at::Tensor hj = x.index_select(1, nbr.reshape({-1})).view({1, N, K, C});
+    const at::Tensor hi = x.unsqueeze(2).expand({1, N, K, C});
+    const at::Tensor e = at::linear(at::cat({hi, hj - hi}, -1), params[edge + "weight"], params[edge + "bias"]);
+    x = at::leaky_relu(e, o.negative_slope).amax(2);  // eq. (13)
+  }
+  for (size_t l = 0; l <= o.decoder_widths.size(); ++l) {
+    const std::string linear = "decoder.linear" + std::to_string(l) + ".";
+    x = at::linear(x, params[linear + "weight"], params[linear + "bias"]);
+    if (l < o.decoder_widths.size()) x = at::leaky_relu(x, o.negative_slope);
+  }
+  return o.output_scale * x.squeeze(0) + (S - history[2]);
+}
+
+TEST(ApparelDisplacementNet, EqualsEquations12And13AsWrittenWithGradients) {
+  // The network takes the motion code once per frame in its first block (the code's channels cancel in
+  // h_j - h_i) and evaluates the blocks factorised; values and gradients must be those of the blocks
+  // written per edge on H with the code broadcast to every vertex.
+  torch::manual_seed(8);
+  ApparelDisplacementNet net(small_options(5));  // zero_init = false: a non-zero decoder
+  net->to(at::kDouble);
+  const at::Tensor nbr = neighbor_table(20, grid_edges(4, 5));
+  const at::Tensor history = at::randn({3, 20, 3}, at::kDouble).requires_grad_();
+  const at::Tensor S = at::randn({20, 3}, at::kDouble).requires_grad_();
+  const at::Tensor T = random_transforms(1, 5)[0].to(at::kDouble);
+  const at::Tensor w = at::randn({20, 3}, at::kDouble);
+  const at::Tensor fast = net->forward(history, T, nbr, S);
+  const at::Tensor written = delta_as_written(net, history, T, nbr, S);
+  // The decoder's part of ΔA is not negligible, so the comparison sees the blocks.
+  EXPECT_GT((written - (S - history[2])).abs().max().item<double>(), 1e-3);
+  EXPECT_LT((fast - written).abs().max().item<double>(), 1e-12);
+
+  std::vector<at::Tensor> inputs = {history, S};
+  std::vector<std::string> names = {"history", "anchor"};
+  for (const auto& p : net->named_parameters()) {
+    inputs.push_back(p.value());
+    names.push_back(p.key());
+  }
+  const auto fast_grad = torch::autograd::grad({(fast * w).sum()}, inputs);
+  const auto written_grad = torch::autograd::grad({(written * w).sum()}, inputs);
+  for (size_t k = 0; k < inputs.size(); ++k) {
+    const double scale = written_grad[k].abs().max().item<double>();
+    EXPECT_GT(scale, 0.0) << names[k];
+    EXPECT_LT((fast_grad[k] - written_grad[k]).abs().max().item<double>(), 1e-10 * (1.0 + scale)) << names[k];
+  }
+
+  // Inference in float: the stacked-product form against the same formula.
+  net->to(at::kFloat);
+  const at::Tensor h = history.detach().to(at::kFloat), S_f = S.detach().to(at::kFloat), T_f = T.to(at::kFloat);
+  at::Tensor reference;
+  {
+    torch::NoGradGuard no_grad;
+    reference = delta_as_written(net, h, T_f, nbr, S_f);
+  }
+  c10::InferenceMode inference;
+  EXPECT_LT((net->forward(h, T_f, nbr, S_f) - reference).abs().max().item<float>(), 1e-5f);
+  // Batched: each row equals its own frame.
+  const at::Tensor batch = net->forward(at::stack({h, 2.0f * h}), at::stack({T_f, T_f}), nbr, at::stack({S_f, S_f}));
+  EXPECT_LT((batch[0] - reference).abs().max().item<float>(), 1e-5f);
 }
 
 TEST(ApparelDisplacementNet, RootRelativeFeaturesIgnoreWhereTheCharacterIs) {

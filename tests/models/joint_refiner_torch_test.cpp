@@ -2,8 +2,12 @@
 #include "models/joint_refiner.h"
 
 #include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
 #include <gtest/gtest.h>
+#include <torch/csrc/autograd/autograd.h>
+#include <torch/utils.h>
 
+#include <string>
 #include <vector>
 
 namespace amt {
@@ -57,10 +61,58 @@ TEST(JointRefiner, RefinesWithNonZeroWeightsAndPassesGradients) {
   EXPECT_LT((net->forward(moved, rest, mask).delta - out.delta).abs().max().item<float>(), 1e-5f);
 }
 
+TEST(JointRefiner, PreparedCharacterEqualsThePlainForward) {
+  // prepare() runs the first layer on the constant inputs (rest position, mask) once; a frame then
+  // multiplies only its 3 posed channels. Same V̂, ΔV and gradients as forward(tiled, rest, prob).
+  for (const std::vector<int64_t>& hidden : {std::vector<int64_t>{16, 8}, std::vector<int64_t>{}}) {
+    torch::manual_seed(3);
+    JointRefinerOptions options;
+    options.zero_init = false;
+    options.hidden_widths = hidden;
+    JointRefiner net(options);
+    net->to(at::kDouble);
+    const std::string what = "hidden layers: " + std::to_string(hidden.size());
+    const at::Tensor rest = at::randn({20, 3}, at::kDouble) + at::tensor({0.0, 1.0, 0.0}, at::kDouble);
+    const at::Tensor prob = at::rand({20}, at::kDouble);
+    const at::Tensor tiled = (rest + 0.1 * at::randn({2, 20, 3}, at::kDouble)).requires_grad_();
+    const RefinerCharacter character = net->prepare(rest, prob);
+    ASSERT_EQ(character.rest_term.sizes(), (at::IntArrayRef{20, hidden.empty() ? 3 : 16})) << what;
+    const RefinerOutput plain = net->forward(tiled, rest, prob);
+    const RefinerOutput fast = net->forward(tiled, character);
+    EXPECT_GT(plain.delta.abs().max().item<double>(), 1e-3) << what;
+    EXPECT_LT((fast.V_hat - plain.V_hat).abs().max().item<double>(), 1e-12) << what;
+    EXPECT_LT((fast.delta - plain.delta).abs().max().item<double>(), 1e-12) << what;
+    // Unbatched, and one frame of the batch.
+    const RefinerOutput one = net->forward(tiled[1], character);
+    ASSERT_EQ(one.V_hat.sizes(), (at::IntArrayRef{20, 3})) << what;
+    EXPECT_LT((one.V_hat - plain.V_hat[1]).abs().max().item<double>(), 1e-12) << what;
+    // Gradients in the input and every parameter (the prepared term carries the first layer's).
+    std::vector<at::Tensor> inputs = {tiled};
+    for (const auto& p : net->parameters()) inputs.push_back(p);
+    const at::Tensor w = at::randn({2, 20, 3}, at::kDouble);
+    const auto plain_grad = torch::autograd::grad({(plain.V_hat * w).sum()}, inputs);
+    const auto fast_grad = torch::autograd::grad({(fast.V_hat * w).sum()}, inputs);
+    for (size_t k = 0; k < inputs.size(); ++k) {
+      EXPECT_GT(plain_grad[k].abs().max().item<double>(), 0.0) << what << ", input " << k;
+      EXPECT_LT((fast_grad[k] - plain_grad[k]).abs().max().item<double>(), 1e-10) << what << ", input " << k;
+    }
+    // Inference in float, as the runtime runs it (in place).
+    net->to(at::kFloat);
+    const at::Tensor rest_f = rest.to(at::kFloat), prob_f = prob.to(at::kFloat), x = tiled.detach()[0].to(at::kFloat);
+    c10::InferenceMode inference;
+    const RefinerOutput expected = net->forward(x, rest_f, prob_f);
+    const RefinerOutput runtime = net->forward(x, net->prepare(rest_f, prob_f));
+    EXPECT_LT((runtime.V_hat - expected.V_hat).abs().max().item<float>(), 1e-6f) << what;
+    EXPECT_LT((runtime.delta - expected.delta).abs().max().item<float>(), 1e-6f) << what;
+  }
+}
+
 TEST(JointRefiner, RejectsBadShapes) {
   JointRefiner net;
   EXPECT_THROW(net->forward(at::randn({20, 3}), at::randn({19, 3}), at::rand({20})), c10::Error);
   EXPECT_THROW(net->forward(at::randn({20, 3}), at::randn({20, 3}), at::rand({19})), c10::Error);
+  EXPECT_THROW(net->prepare(at::randn({20, 3}), at::rand({19})), c10::Error);
+  EXPECT_THROW(net->forward(at::randn({19, 3}), net->prepare(at::randn({20, 3}), at::rand({20}))), c10::Error);
 }
 
 }  // namespace
