@@ -16,10 +16,10 @@
 #include <optional>
 #include <tuple>
 
+#include "data_tools/body_penetration.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
 #include "data_tools/metrics_torch.h"
-#include "data_tools/winding_number.h"
 #include "train/samples.h"
 
 namespace amt {
@@ -109,12 +109,16 @@ struct EvalClip {
   std::string subset;
 };
 
-// The held-out clips of the shards, per subset in file order, at most max_clips per subset.
+// The held-out clips of the shards per subset. With max_clips > 0 a subset keeps at most that many,
+// taken round robin over its characters (every character's first clip, then every second clip, ...,
+// each character's clips in file order), so that a capped evaluation still covers every character.
 std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>& readers, int max_clips) {
-  std::vector<EvalClip> clips;
-  std::map<std::string, int> per_subset;
+  // subset -> characters -> (position in file order, clip)
+  std::map<std::string, std::vector<std::vector<std::pair<size_t, EvalClip>>>> by_character;
+  size_t position = 0;
   for (size_t s = 0; s < readers.size(); ++s) {
     std::map<std::string, std::string> character_split;
+    std::map<std::pair<std::string, std::string>, size_t> slot;  // (subset, character) -> index
     for (const std::string& name : readers[s]->character_names())
       character_split[name] = readers[s]->character_summary(name).split;
     for (const std::string& name : readers[s]->clip_names()) {
@@ -126,11 +130,30 @@ std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>
         subset = kHeldOutClips;
       else
         continue;
-      if (max_clips > 0 && per_subset[subset] >= max_clips) continue;
-      ++per_subset[subset];
-      clips.push_back({static_cast<int>(s), std::move(info), subset});
+      auto& characters = by_character[subset];
+      const auto [it, added] = slot.try_emplace({subset, info.character}, characters.size());
+      if (added) characters.emplace_back();
+      characters[it->second].emplace_back(position++, EvalClip{static_cast<int>(s), std::move(info), subset});
     }
   }
+  std::vector<std::pair<size_t, EvalClip>> chosen;
+  for (auto& [subset, characters] : by_character) {
+    int taken = 0;
+    for (size_t round = 0;; ++round) {
+      bool any = false;
+      for (auto& list : characters) {
+        if (round >= list.size() || (max_clips > 0 && taken >= max_clips)) continue;
+        chosen.push_back(std::move(list[round]));
+        ++taken;
+        any = true;
+      }
+      if (!any) break;
+    }
+  }
+  // Back in file order, the order of an uncapped evaluation.
+  std::sort(chosen.begin(), chosen.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<EvalClip> clips;
+  for (auto& [order, clip] : chosen) clips.push_back(std::move(clip));
   return clips;
 }
 
@@ -140,15 +163,17 @@ struct CharacterCache {
   at::Tensor V, F, joints, gt_mask, gt_weights;
   std::vector<uint8_t> mask;  // ground-truth apparel mask, 1 = apparel
   MatrixX2i E;                // unique edges, for ELS
-  std::vector<int64_t> body_vertices, apparel_vertices;
-  MatrixX3i body_faces;  // faces with three ground-truth body vertices, numbered in body_vertices
-  bool penetration = false;
+  int num_apparel = 0;        // ground-truth apparel vertices
+  // Penetration of a predicted frame's apparel into its body (both split by the ground-truth mask):
+  // one winding-number tree of the body surface, built on the rest pose and refitted to every frame
+  // of every method. Empty without the penetration measure or without apparel or body faces.
+  std::optional<BodyPenetration> body;
   std::map<std::string, BoundCharacter> binds;
   std::optional<SegmentationScores> segmentation;
 };
 
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
-                                               const std::string& subset) {
+                                               const std::string& subset, bool penetration) {
   const CharacterData data = reader.read_character(name);
   auto c = std::make_unique<CharacterCache>();
   c->name = name;
@@ -161,56 +186,51 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   c->gt_mask = at::from_blob(c->mask.data(), {N}, at::kByte).to(at::kBool);
   c->gt_weights = float_tensor(data.body_weights.data(), {N, J});
   c->E = unique_edges(data.mesh.F);
-  std::vector<int32_t> body_index(N, -1);
-  for (int64_t i = 0; i < N; ++i) {
-    if (c->mask[i]) {
-      c->apparel_vertices.push_back(i);
-    } else {
-      body_index[i] = static_cast<int32_t>(c->body_vertices.size());
-      c->body_vertices.push_back(i);
-    }
+  c->num_apparel = static_cast<int>(std::count_if(c->mask.begin(), c->mask.end(), [](uint8_t a) { return a != 0; }));
+  if (penetration) {
+    BodyPenetration body(data.mesh.V, data.mesh.F, c->mask);
+    if (body.active()) c->body.emplace(std::move(body));
   }
-  std::vector<int32_t> faces;
-  for (int f = 0; f < data.mesh.num_faces(); ++f) {
-    const int32_t a = body_index[data.mesh.F(f, 0)], b = body_index[data.mesh.F(f, 1)],
-                  d = body_index[data.mesh.F(f, 2)];
-    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
-  }
-  c->body_faces = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
-  c->penetration = !c->apparel_vertices.empty() && c->body_faces.rows() > 0;
   return c;
 }
 
-// Penetration of the frame's apparel vertices into its body (both from `pred`, split by the GT mask).
-std::optional<Penetration> frame_penetration(const CharacterCache& c, const MatrixX3f& pred) {
-  if (!c.penetration) return std::nullopt;
-  MatrixX3f body(static_cast<Eigen::Index>(c.body_vertices.size()), 3);
-  for (size_t i = 0; i < c.body_vertices.size(); ++i) body.row(i) = pred.row(c.body_vertices[i]);
-  MatrixX3f apparel(static_cast<Eigen::Index>(c.apparel_vertices.size()), 3);
-  for (size_t i = 0; i < c.apparel_vertices.size(); ++i) apparel.row(i) = pred.row(c.apparel_vertices[i]);
-  try {
-    const WindingNumberTree tree(body, c.body_faces);
-    return penetration(apparel, tree);
-  } catch (const Error&) {
-    return std::nullopt;  // a degenerate predicted body surface: no penetration figure for this frame
-  }
+// One predicted frame, ready to score.
+struct PredictedFrame {
+  MatrixX3f V;                             // (N, 3) in mesh order, metres
+  std::optional<Penetration> penetration;  // when measured and the predicted body is finite
+};
+
+// The frame V (N, 3) of character c with the penetration of its apparel into its body, when measured.
+PredictedFrame predicted_frame(CharacterCache& c, MatrixX3f V) {
+  PredictedFrame frame{std::move(V), std::nullopt};
+  if (c.body) frame.penetration = c.body->measure(frame.V);
+  return frame;
 }
 
 using Key = std::tuple<std::string, std::string, std::string>;  // (method or character, protocol, subset)
+
+// A rollout curve: per predicted frame, the sum of the clips' PMD_a and how many clips reached it.
+using Curve = std::pair<std::vector<double>, std::vector<int>>;
+
+// Adds frame t's PMD_a to a curve (a NaN PMD_a, no apparel, does not count).
+void add_to_curve(Curve& curve, int64_t t, double pmd_a) {
+  if (curve.first.size() <= static_cast<size_t>(t)) curve.first.push_back(0.0), curve.second.push_back(0);
+  if (pmd_a == pmd_a) curve.first[t] += pmd_a, curve.second[t] += 1;
+}
 
 // Accumulators for every table row and per-character entry, and the rollout curves.
 struct Accumulators {
   std::map<Key, ScoreAccumulator> rows;
   std::map<Key, ScoreAccumulator> characters;  // (character, method, protocol)
-  std::map<std::pair<std::string, std::string>, std::pair<std::vector<double>, std::vector<int>>> curves;
+  std::map<std::pair<std::string, std::string>, Curve> curves;
 };
 
-// Scores the frames of one clip for one method and protocol. `frames` yields (pred (N, 3), gt frame).
+// Scores the frames of one clip for one method and protocol.
 class ClipScorer {
  public:
   ClipScorer(Accumulators& acc, const CharacterCache& c, const std::string& method, const std::string& protocol,
-             bool with_penetration, bool per_character)
-      : c_(c), with_penetration_(with_penetration) {
+             bool per_character)
+      : c_(c) {
     row_ = &acc.rows[{method, protocol, c.subset}];
     row_->begin_clip();
     if (per_character) {
@@ -222,19 +242,18 @@ class ClipScorer {
     row_->end_clip();
     if (character_) character_->end_clip();
   }
+  ClipScorer(const ClipScorer&) = delete;
+  ClipScorer& operator=(const ClipScorer&) = delete;
   // Adds a frame and returns its PMD_a (cm; NaN without apparel).
-  double add(const at::Tensor& pred_tensor, const MatrixX3f& gt) {
-    const MatrixX3f pred = to_matrix(pred_tensor);
-    std::optional<Penetration> pen;
-    if (with_penetration_) pen = frame_penetration(c_, pred);
-    row_->add_frame(pred, gt, c_.mask, c_.E, pen ? &*pen : nullptr);
-    if (character_) character_->add_frame(pred, gt, c_.mask, c_.E, pen ? &*pen : nullptr);
-    return point_mesh_distance_cm(pred, gt, &c_.mask, 1);
+  double add(const PredictedFrame& frame, const MatrixX3f& gt) {
+    const Penetration* pen = frame.penetration ? &*frame.penetration : nullptr;
+    row_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
+    if (character_) character_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
+    return point_mesh_distance_cm(frame.V, gt, &c_.mask, 1);
   }
 
  private:
   const CharacterCache& c_;
-  bool with_penetration_;
   ScoreAccumulator* row_ = nullptr;
   ScoreAccumulator* character_ = nullptr;
 };
@@ -279,7 +298,7 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
     cs.character = c->name;
     cs.subset = c->subset;
     cs.num_vertices = static_cast<int>(c->mask.size());
-    cs.num_apparel = static_cast<int>(c->apparel_vertices.size());
+    cs.num_apparel = c->num_apparel;
     if (c->segmentation) {
       cs.segmentation = *c->segmentation;
       auto& s = seg[c->subset];
@@ -392,6 +411,20 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   AMT_CHECK(!clips.empty(), shards.front(), (shards.size() > 1 ? " (and the other shards)" : ""),
             ": no held-out clips (expected clips of test characters, or test clips of train characters)");
   const int64_t J = bundle.num_joints();
+  // "body_apparel" is the full model without its refiner: the same bind, B̂ and Â (the apparel history
+  // holds Â, not the refined V̂). When both run, the full model's steps also give body_apparel's
+  // frames, tile(Â, B̂), which is what a body_apparel stepper returns, at the cost of one model run.
+  const auto spec_of = [&](const std::string& key) -> const MethodSpec* {
+    for (const MethodSpec& m : methods)
+      if (m.key == key) return &m;
+    return nullptr;
+  };
+  const MethodSpec* full_spec = spec_of("full");
+  const MethodSpec* tiled_spec = spec_of("body_apparel");
+  const bool tiled_from_full = full_spec && tiled_spec && full_spec->bind == tiled_spec->bind &&
+                               full_spec->stages == PipelineStages::kFull &&
+                               tiled_spec->stages == PipelineStages::kBodyApparel;
+  const auto per_character = [](const std::string& key) { return key == "skinning_baseline" || key == "full"; };
 
   Accumulators acc;
   std::vector<std::unique_ptr<CharacterCache>> cache;
@@ -404,7 +437,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     const DatasetReader& reader = *readers[clip.shard];
     CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
     if (!c) {
-      cache.push_back(load_character(reader, clip.info.character, clip.subset));
+      cache.push_back(load_character(reader, clip.info.character, clip.subset, options.penetration));
       c = cache.back().get();
     }
     ++result.clips[clip.subset];
@@ -412,9 +445,18 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const at::Tensor gt_tensor = float_tensor(gt_all.data(), {T, N, 3});
+    std::vector<MatrixX3f> gt(static_cast<size_t>(T));  // gt[t] (N, 3)
+    for (int64_t t = 0; t < T; ++t) gt[t] = frame_of(gt_all, t, N);
     if (options.paper && T < options.window) ++short_clips;
+    // The frames that the paper protocol predicts (each once): windows at a stride of window - 3.
+    const bool paper = options.paper && T >= options.window;
+    std::vector<uint8_t> paper_frame(static_cast<size_t>(T), 0);
+    if (paper)
+      for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory)
+        for (int64_t t = s + kHistory; t < s + options.window; ++t) paper_frame[t] = 1;
 
     for (const MethodSpec& m : methods) {
+      if (tiled_from_full && m.key == tiled_spec->key) continue;  // scored from the full model's steps
       auto bound = c->binds.find(m.bind);
       if (bound == c->binds.end())
         bound = c->binds.emplace(m.bind, bind_character(bundle, c->V, c->F, c->joints, bind_options_for(m.bind, *c)))
@@ -422,28 +464,62 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       const BoundCharacter& b = bound->second;
       if (m.bind == "predicted" && !c->segmentation)
         c->segmentation = segmentation_scores(b.apparel_prob, c->gt_mask);
-      const bool per_character = m.key == "skinning_baseline" || m.key == "full";
-      const at::Tensor gt_apparel = gt_tensor.index_select(1, b.apparel_ids);  // (T, N_a, 3)
 
-      if (options.paper && T >= options.window) {
-        ClipScorer scorer(acc, *c, m.key, kPaper, options.penetration, per_character);
+      if (m.stages == PipelineStages::kBodyOnly) {
+        // Body only: frame t is LBS of motion[t] whatever the apparel history, so the paper protocol's
+        // frames are the rollout's (and need no lead-in): each is predicted and measured once for both.
+        std::optional<ClipScorer> paper_scorer, rollout_scorer;
+        if (paper) paper_scorer.emplace(acc, *c, m.key, kPaper, per_character(m.key));
+        if (options.rollout) rollout_scorer.emplace(acc, *c, m.key, kRollout, per_character(m.key));
+        PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
+        for (int64_t t = 0; t < T; ++t) {
+          if (!rollout_scorer && !paper_frame[t]) continue;
+          const PredictedFrame frame = predicted_frame(*c, to_matrix(stepper.step(motion[t])));
+          if (paper_frame[t]) paper_scorer->add(frame, gt[t]);
+          if (rollout_scorer) add_to_curve(acc.curves[{c->subset, m.key}], t, rollout_scorer->add(frame, gt[t]));
+        }
+        continue;
+      }
+
+      // Scores one step of `stepper`: the method's frame and, from the full model's steps, body_apparel's.
+      const bool with_tiled = tiled_from_full && m.key == full_spec->key;
+      const auto score_step = [&](PipelineStepper& stepper, int64_t t, ClipScorer& scorer, ClipScorer* tiled) {
+        const StepOutput out = stepper.step_detailed(motion[t]);
+        const double pmd_a = scorer.add(predicted_frame(*c, to_matrix(out.V_hat)), gt[t]);
+        if (tiled) {
+          // tile(Â, B̂): the bound index lists partition the mesh.
+          c10::InferenceMode inference;
+          at::Tensor tiled_V = at::empty({N, 3}, at::kFloat);
+          tiled_V.index_copy_(0, b.apparel_ids, out.A_hat).index_copy_(0, b.body_ids, out.B_hat);
+          return std::make_pair(pmd_a, tiled->add(predicted_frame(*c, to_matrix(tiled_V)), gt[t]));
+        }
+        return std::make_pair(pmd_a, 0.0);
+      };
+      if (paper) {
+        const at::Tensor gt_apparel = gt_tensor.index_select(1, b.apparel_ids);  // (T, N_a, 3)
+        ClipScorer scorer(acc, *c, m.key, kPaper, per_character(m.key));
+        std::optional<ClipScorer> tiled;
+        if (with_tiled) tiled.emplace(acc, *c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages);
         for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
           stepper.reset(gt_apparel.narrow(0, s, kHistory));
           for (int64_t t = s + kHistory; t < s + options.window; ++t)
-            scorer.add(stepper.step(motion[t]), frame_of(gt_all, t, N));
+            score_step(stepper, t, scorer, tiled ? &*tiled : nullptr);
         }
       }
       if (options.rollout) {
-        ClipScorer scorer(acc, *c, m.key, kRollout, options.penetration, per_character);
+        ClipScorer scorer(acc, *c, m.key, kRollout, per_character(m.key));
+        std::optional<ClipScorer> tiled;
+        if (with_tiled) tiled.emplace(acc, *c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
         const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);
         for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
-        auto& curve = acc.curves[{c->subset, m.key}];
+        Curve& curve = acc.curves[{c->subset, m.key}];
+        Curve* tiled_curve = with_tiled ? &acc.curves[{c->subset, tiled_spec->key}] : nullptr;
         for (int64_t t = 0; t < T; ++t) {
-          const double pmd_a = scorer.add(stepper.step(motion[t]), frame_of(gt_all, t, N));
-          if (curve.first.size() <= static_cast<size_t>(t)) curve.first.push_back(0.0), curve.second.push_back(0);
-          if (pmd_a == pmd_a) curve.first[t] += pmd_a, curve.second[t] += 1;
+          const auto [pmd_a, tiled_pmd_a] = score_step(stepper, t, scorer, tiled ? &*tiled : nullptr);
+          add_to_curve(curve, t, pmd_a);
+          if (tiled_curve) add_to_curve(*tiled_curve, t, tiled_pmd_a);
         }
       }
     }
@@ -489,7 +565,7 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     const DatasetReader& reader = *readers[clip.shard];
     CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
     if (!c) {
-      cache.push_back(load_character(reader, clip.info.character, clip.subset));
+      cache.push_back(load_character(reader, clip.info.character, clip.subset, options.penetration));
       c = cache.back().get();
     }
     const ClipInfo p = predicted.clip_info(clip.info.name);
@@ -502,15 +578,10 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     ++result.clips[clip.subset];
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
-    ClipScorer scorer(acc, *c, "predictions", "file", options.penetration, true);
-    auto& curve = acc.curves[{c->subset, "predictions"}];
-    for (int64_t t = 0; t < T; ++t) {
-      const MatrixX3f pred = frame_of(pred_all, t, N);
-      const at::Tensor pred_tensor = at::from_blob(const_cast<float*>(pred.data()), {N, 3}, at::kFloat);
-      const double pmd_a = scorer.add(pred_tensor, frame_of(gt_all, t, N));
-      if (curve.first.size() <= static_cast<size_t>(t)) curve.first.push_back(0.0), curve.second.push_back(0);
-      if (pmd_a == pmd_a) curve.first[t] += pmd_a, curve.second[t] += 1;
-    }
+    ClipScorer scorer(acc, *c, "predictions", "file", true);
+    Curve& curve = acc.curves[{c->subset, "predictions"}];
+    for (int64_t t = 0; t < T; ++t)
+      add_to_curve(curve, t, scorer.add(predicted_frame(*c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N)));
     progress.update(static_cast<int>(k + 1));
   }
   finish(result, acc, cache);

@@ -7,6 +7,7 @@
 #include <torch/utils.h>
 
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -31,22 +32,27 @@ std::string write_fresh_bundle(const std::string& name) {
 }
 
 // A dataset whose ground truth IS LBS with the ground-truth weights (apparel included): one test
-// character with one walk, one train character with a train walk and a test walk.
-void write_lbs_dataset(const std::string& path, int frames) {
+// character with one walk (or `test_characters` of them with `test_clips` walks each, named
+// capsules_test, capsules_test1, ...), one train character with a train walk and a test walk.
+void write_lbs_dataset(const std::string& path, int frames, int test_characters = 1, int test_clips = 1) {
   const Skeleton skeleton = canonical_skeleton();
   DatasetWriter writer(path, 30.0f, skeleton.names);
-  for (const std::string split : {"test", "train"}) {
+  std::vector<std::pair<std::string, std::string>> characters;  // (name, split)
+  for (int k = 0; k < test_characters; ++k)
+    characters.emplace_back("capsules_test" + (k == 0 ? std::string() : std::to_string(k)), "test");
+  characters.emplace_back("capsules_train", "train");
+  for (const auto& [name, split] : characters) {
     CharacterData character = capsule_example_character(skeleton, 160);
-    character.name = "capsules_" + split;
+    character.name = name;
     character.split = split;
     for (int i = 0; i < character.mesh.num_vertices(); ++i)
       character.apparel_mask[i] = character.body_weights(i, kPelvis) == 1.0f ? 1 : 0;
     writer.add_character(character);
     const SparseWeights weights = sparsify_weights(character.body_weights);
-    for (int c = 0; c < (split == "train" ? 2 : 1); ++c) {
+    for (int c = 0; c < (split == "train" ? 2 : test_clips); ++c) {
       Motion walk = walk_motion(frames, 30.0f, 1.0f + 0.3f * c);
       ClipInfo clip;
-      clip.name = "walk_" + split + std::to_string(c);
+      clip.name = "walk_" + name + "_" + std::to_string(c);
       clip.character = character.name;
       clip.motion = "procedural_walk";
       clip.split = c == 0 ? "test" : "train";
@@ -96,6 +102,70 @@ TEST(Evaluate, SkinningBaselineIsZeroWhenTheGroundTruthIsLbs) {
   EXPECT_EQ(result.characters.size(), 2u);
   ASSERT_FALSE(result.curves.empty());
   EXPECT_EQ(result.curves.front().pmd_a.size(), 17u);
+}
+
+TEST(Evaluate, CappedEvaluationTakesClipsRoundRobinOverCharacters) {
+  test::use_one_thread();
+  const std::string data = test::test_directory("eval_round_robin") + "/lbs.h5";
+  write_lbs_dataset(data, 12, /*test_characters=*/3, /*test_clips=*/3);
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_round_robin_bundle"));
+  EvaluateOptions options;
+  options.methods = {"skinning_baseline"};
+  options.progress = false;
+  options.max_clips = 4;  // 3 characters x 3 clips: the first clip of each, then capsules_test's second
+  const EvaluationResult capped = evaluate_model(bundle, {data}, options);
+  EXPECT_EQ(capped.clips.at(kHeldOutCharacters), 4);
+  EXPECT_EQ(capped.clips.at(kHeldOutClips), 1);
+  std::set<std::string> seen;
+  for (const CharacterScores& c : capped.characters)
+    if (c.subset == kHeldOutCharacters) seen.insert(c.character);
+  EXPECT_EQ(seen, (std::set<std::string>{"capsules_test", "capsules_test1", "capsules_test2"}));
+  options.max_clips = 0;
+  EXPECT_EQ(evaluate_model(bundle, {data}, options).clips.at(kHeldOutCharacters), 9);
+}
+
+// Methods that share computation score as if run alone: body_apparel from the full model's steps,
+// and the body-only methods' paper frames, which are their rollout frames 4..T (LBS needs no history).
+TEST(Evaluate, SharedStepsScoreAsSeparateRuns) {
+  test::use_one_thread();
+  const std::string data = test::test_directory("eval_shared") + "/lbs.h5";
+  write_lbs_dataset(data, 17);
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_shared_bundle"));
+  EvaluateOptions options;
+  options.progress = false;
+  options.methods = {"lbs_predicted", "body_apparel", "full"};
+  const EvaluationResult together = evaluate_model(bundle, {data}, options);
+  options.methods = {"body_apparel"};
+  const EvaluationResult alone = evaluate_model(bundle, {data}, options);
+  for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
+    for (const char* protocol : {"paper", "rollout"}) {
+      const MethodScores* a = together.find("body_apparel", protocol, subset);
+      const MethodScores* b = alone.find("body_apparel", protocol, subset);
+      ASSERT_NE(a, nullptr);
+      ASSERT_NE(b, nullptr);
+      EXPECT_EQ(a->scores.frames, b->scores.frames);
+      EXPECT_DOUBLE_EQ(a->scores.pmd, b->scores.pmd) << subset << protocol;
+      EXPECT_DOUBLE_EQ(a->scores.pmd_a, b->scores.pmd_a) << subset << protocol;
+      EXPECT_DOUBLE_EQ(a->scores.els, b->scores.els) << subset << protocol;
+      EXPECT_DOUBLE_EQ(a->scores.penetration_share, b->scores.penetration_share) << subset << protocol;
+      EXPECT_DOUBLE_EQ(a->scores.penetration_depth_cm, b->scores.penetration_depth_cm) << subset << protocol;
+      // The untrained refiner moves vertices: the full model's rows are its own.
+      EXPECT_NE(together.find("full", protocol, subset)->scores.pmd, a->scores.pmd);
+    }
+    // One clip per subset: the paper protocol's PMD_a is the mean of the rollout curve over frames 4..17.
+    const MethodScores* paper = together.find("lbs_predicted", "paper", subset);
+    ASSERT_NE(paper, nullptr);
+    EXPECT_EQ(paper->scores.frames, 14);
+    const RolloutCurve* curve = nullptr;
+    for (const RolloutCurve& c : together.curves)
+      if (c.subset == subset && c.method == "lbs_predicted") curve = &c;
+    ASSERT_NE(curve, nullptr);
+    ASSERT_EQ(curve->pmd_a.size(), 17u);
+    double sum = 0;
+    for (int t = 3; t < 17; ++t) sum += curve->pmd_a[t];
+    EXPECT_GT(paper->scores.pmd_a, 0.01);
+    EXPECT_NEAR(paper->scores.pmd_a, sum / 14, 1e-9 * paper->scores.pmd_a);
+  }
 }
 
 TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
