@@ -202,6 +202,11 @@ void WindingNumberTree::merge_children(int32_t index) {
     }
     node.radius = std::max(node.radius, child->radius + d.norm());
   }
+  // Every corner lies in the box, so the box's farthest corner bounds the radius too: more tightly
+  // than the children's bounds high in the tree, where they add up (a larger radius than needed
+  // makes queries open nodes whose far field would do).
+  const Eigen::Vector3d lo = node.box.min().cast<double>() - far.center, hi = node.box.max().cast<double>() - far.center;
+  node.radius = std::min(node.radius, lo.cwiseAbs().cwiseMax(hi.cwiseAbs()).norm());
 }
 
 int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {

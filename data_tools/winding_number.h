@@ -62,7 +62,8 @@ class WindingNumberTree {
   /// construction; the faces stay those given then) and refits the tree to them in O(#F) without
   /// re-sorting: leaves recompute their boxes and expansions from their triangles (in parallel with
   /// OpenMP), inner nodes merge their children's (boxes by union, moments shifted to the new centre,
-  /// radius bounded by child radius plus centre offset, never smaller than the exact one). The far
+  /// radius bounded by the smaller of child radius plus centre offset and the distance to the box's
+  /// farthest corner, never smaller than the exact one). The far
   /// field stays as accurate as after a fresh build; queries get slower only when the motion makes
   /// the boxes overlap much more than at construction (a posed body of a skinned character does not).
   /// This is what the runtime does per frame instead of building a tree over the posed body.
