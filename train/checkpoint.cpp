@@ -9,6 +9,7 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "train/module_options.h"
 
 namespace amt {
 namespace {
@@ -226,6 +227,28 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
   }
   return info;
 }
+
+template <typename Net, typename Options>
+Net load_frozen_network(const std::string& path, ModuleKind kind, CheckpointInfo& info) {
+  info = read_checkpoint_info(path, kind);
+  Options options;
+  options_from_json(info.options_json, path, options);
+  Net net(options);
+  load_checkpoint(path, kind, *net, nullptr);
+  net->eval();
+  for (auto& p : net->parameters()) p.set_requires_grad(false);
+  return net;
+}
+
+// The networks load_frozen_network is defined for (train/checkpoint.h).
+template ApparelSegmenter load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(
+    const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template SkinningPredictor load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(
+    const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template ApparelDisplacementNet load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(
+    const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template JointRefiner load_frozen_network<JointRefiner, JointRefinerOptions>(
+    const std::string& path, ModuleKind kind, CheckpointInfo& info);
 
 void check_checkpoint_skeleton(const std::string& path, const CheckpointInfo& info,
                                const std::vector<std::string>& dataset_joint_names) {

@@ -83,6 +83,16 @@ CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<Modul
 CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind, torch::nn::Module& model,
                                torch::optim::Optimizer* optimizer);
 
+/// A trained network rebuilt for inference from the checkpoint at `path`: reads the info (the kind must be
+/// `kind`), builds a Net from the stored options (options_from_json, train/module_options.h), loads its
+/// tensors (load_checkpoint) and freezes it: eval mode, no parameter requires grad. `info` receives the
+/// checkpoint's info. Errors name the file and the key, as those of the functions it calls.
+/// Defined for the four networks of models/: (ApparelSegmenter, ApparelSegmenterOptions),
+/// (SkinningPredictor, SkinningPredictorOptions), (ApparelDisplacementNet, ApparelDisplacementOptions) and
+/// (JointRefiner, JointRefinerOptions).
+template <typename Net, typename Options>
+Net load_frozen_network(const std::string& path, ModuleKind kind, CheckpointInfo& info);
+
 /// Throws amt::Error unless the checkpoint was trained on `dataset_joint_names` (same names, same
 /// order): "x.ckpt: skeleton: the checkpoint was trained on N joints (a, b, ...), the dataset has M (...)".
 void check_checkpoint_skeleton(const std::string& path, const CheckpointInfo& info,

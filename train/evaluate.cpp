@@ -194,6 +194,22 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   return c;
 }
 
+// The characters of the clips evaluated so far, each loaded once per (shard, name).
+struct CharacterCaches {
+  std::vector<std::unique_ptr<CharacterCache>> loaded;  // in the order first met
+  std::map<std::pair<int, std::string>, CharacterCache*> index;
+
+  // The character of `clip`, read from `reader` (the clip's shard) on first use.
+  CharacterCache& of(const DatasetReader& reader, const EvalClip& clip, bool penetration) {
+    CharacterCache*& c = index[{clip.shard, clip.info.character}];
+    if (!c) {
+      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration));
+      c = loaded.back().get();
+    }
+    return *c;
+  }
+};
+
 // One predicted frame, ready to score.
 struct PredictedFrame {
   MatrixX3f V;                             // (N, 3) in mesh order, metres
@@ -427,21 +443,16 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   const auto per_character = [](const std::string& key) { return key == "skinning_baseline" || key == "full"; };
 
   Accumulators acc;
-  std::vector<std::unique_ptr<CharacterCache>> cache;
-  std::map<std::pair<int, std::string>, CharacterCache*> cache_index;
+  CharacterCaches characters;
   int short_clips = 0;
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   progress.update(0);
   for (size_t k = 0; k < clips.size(); ++k) {
     const EvalClip& clip = clips[k];
     const DatasetReader& reader = *readers[clip.shard];
-    CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
-    if (!c) {
-      cache.push_back(load_character(reader, clip.info.character, clip.subset, options.penetration));
-      c = cache.back().get();
-    }
+    CharacterCache& c = characters.of(reader, clip, options.penetration);
     ++result.clips[clip.subset];
-    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c->mask.size());
+    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c.mask.size());
     const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const at::Tensor gt_tensor = float_tensor(gt_all.data(), {T, N, 3});
@@ -457,26 +468,24 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 
     for (const MethodSpec& m : methods) {
       if (tiled_from_full && m.key == tiled_spec->key) continue;  // scored from the full model's steps
-      auto bound = c->binds.find(m.bind);
-      if (bound == c->binds.end())
-        bound = c->binds.emplace(m.bind, bind_character(bundle, c->V, c->F, c->joints, bind_options_for(m.bind, *c)))
-                    .first;
+      auto bound = c.binds.find(m.bind);
+      if (bound == c.binds.end())
+        bound = c.binds.emplace(m.bind, bind_character(bundle, c.V, c.F, c.joints, bind_options_for(m.bind, c))).first;
       const BoundCharacter& b = bound->second;
-      if (m.bind == "predicted" && !c->segmentation)
-        c->segmentation = segmentation_scores(b.apparel_prob, c->gt_mask);
+      if (m.bind == "predicted" && !c.segmentation) c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
 
       if (m.stages == PipelineStages::kBodyOnly) {
         // Body only: frame t is LBS of motion[t] whatever the apparel history, so the paper protocol's
         // frames are the rollout's (and need no lead-in): each is predicted and measured once for both.
         std::optional<ClipScorer> paper_scorer, rollout_scorer;
-        if (paper) paper_scorer.emplace(acc, *c, m.key, kPaper, per_character(m.key));
-        if (options.rollout) rollout_scorer.emplace(acc, *c, m.key, kRollout, per_character(m.key));
+        if (paper) paper_scorer.emplace(acc, c, m.key, kPaper, per_character(m.key));
+        if (options.rollout) rollout_scorer.emplace(acc, c, m.key, kRollout, per_character(m.key));
         PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
         for (int64_t t = 0; t < T; ++t) {
           if (!rollout_scorer && !paper_frame[t]) continue;
-          const PredictedFrame frame = predicted_frame(*c, to_matrix(stepper.step(motion[t])));
+          const PredictedFrame frame = predicted_frame(c, to_matrix(stepper.step(motion[t])));
           if (paper_frame[t]) paper_scorer->add(frame, gt[t]);
-          if (rollout_scorer) add_to_curve(acc.curves[{c->subset, m.key}], t, rollout_scorer->add(frame, gt[t]));
+          if (rollout_scorer) add_to_curve(acc.curves[{c.subset, m.key}], t, rollout_scorer->add(frame, gt[t]));
         }
         continue;
       }
@@ -485,21 +494,21 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       const bool with_tiled = tiled_from_full && m.key == full_spec->key;
       const auto score_step = [&](PipelineStepper& stepper, int64_t t, ClipScorer& scorer, ClipScorer* tiled) {
         const StepOutput out = stepper.step_detailed(motion[t]);
-        const double pmd_a = scorer.add(predicted_frame(*c, to_matrix(out.V_hat)), gt[t]);
+        const double pmd_a = scorer.add(predicted_frame(c, to_matrix(out.V_hat)), gt[t]);
         if (tiled) {
           // tile(Â, B̂): the bound index lists partition the mesh.
           c10::InferenceMode inference;
           at::Tensor tiled_V = at::empty({N, 3}, at::kFloat);
           tiled_V.index_copy_(0, b.apparel_ids, out.A_hat).index_copy_(0, b.body_ids, out.B_hat);
-          return std::make_pair(pmd_a, tiled->add(predicted_frame(*c, to_matrix(tiled_V)), gt[t]));
+          return std::make_pair(pmd_a, tiled->add(predicted_frame(c, to_matrix(tiled_V)), gt[t]));
         }
         return std::make_pair(pmd_a, 0.0);
       };
       if (paper) {
         const at::Tensor gt_apparel = gt_tensor.index_select(1, b.apparel_ids);  // (T, N_a, 3)
-        ClipScorer scorer(acc, *c, m.key, kPaper, per_character(m.key));
+        ClipScorer scorer(acc, c, m.key, kPaper, per_character(m.key));
         std::optional<ClipScorer> tiled;
-        if (with_tiled) tiled.emplace(acc, *c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
+        if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages);
         for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
           stepper.reset(gt_apparel.narrow(0, s, kHistory));
@@ -508,14 +517,14 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         }
       }
       if (options.rollout) {
-        ClipScorer scorer(acc, *c, m.key, kRollout, per_character(m.key));
+        ClipScorer scorer(acc, c, m.key, kRollout, per_character(m.key));
         std::optional<ClipScorer> tiled;
-        if (with_tiled) tiled.emplace(acc, *c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
+        if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
-        const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);
+        const at::Tensor lead_in = motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames);
         for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
-        Curve& curve = acc.curves[{c->subset, m.key}];
-        Curve* tiled_curve = with_tiled ? &acc.curves[{c->subset, tiled_spec->key}] : nullptr;
+        Curve& curve = acc.curves[{c.subset, m.key}];
+        Curve* tiled_curve = with_tiled ? &acc.curves[{c.subset, tiled_spec->key}] : nullptr;
         for (int64_t t = 0; t < T; ++t) {
           const auto [pmd_a, tiled_pmd_a] = score_step(stepper, t, scorer, tiled ? &*tiled : nullptr);
           add_to_curve(curve, t, pmd_a);
@@ -528,7 +537,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   if (short_clips > 0)
     result.notes.push_back(std::to_string(short_clips) + " clip(s) shorter than the " + std::to_string(options.window) +
                            "-frame window were left out of the paper protocol.");
-  finish(result, acc, cache);
+  finish(result, acc, characters.loaded);
   // Only the curves of the rollout methods that matter for the plot: keep all, the report picks.
   result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return result;
@@ -557,19 +566,14 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
             " (expected clips of the same names)");
 
   Accumulators acc;
-  std::vector<std::unique_ptr<CharacterCache>> cache;
-  std::map<std::pair<int, std::string>, CharacterCache*> cache_index;
+  CharacterCaches characters;
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   for (size_t k = 0; k < clips.size(); ++k) {
     const EvalClip& clip = clips[k];
     const DatasetReader& reader = *readers[clip.shard];
-    CharacterCache*& c = cache_index[{clip.shard, clip.info.character}];
-    if (!c) {
-      cache.push_back(load_character(reader, clip.info.character, clip.subset, options.penetration));
-      c = cache.back().get();
-    }
+    CharacterCache& c = characters.of(reader, clip, options.penetration);
     const ClipInfo p = predicted.clip_info(clip.info.name);
-    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c->mask.size());
+    const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c.mask.size());
     AMT_CHECK(p.num_frames == T, predictions, ": /clips/", p.name, ": frames: expected ", T,
               " (the ground truth's), found ", p.num_frames);
     const CharacterSummary summary = predicted.character_summary(p.character);
@@ -578,13 +582,13 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     ++result.clips[clip.subset];
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
-    ClipScorer scorer(acc, *c, "predictions", "file", true);
-    Curve& curve = acc.curves[{c->subset, "predictions"}];
+    ClipScorer scorer(acc, c, "predictions", "file", true);
+    Curve& curve = acc.curves[{c.subset, "predictions"}];
     for (int64_t t = 0; t < T; ++t)
-      add_to_curve(curve, t, scorer.add(predicted_frame(*c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N)));
+      add_to_curve(curve, t, scorer.add(predicted_frame(c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N)));
     progress.update(static_cast<int>(k + 1));
   }
-  finish(result, acc, cache);
+  finish(result, acc, characters.loaded);
   result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return result;
 }

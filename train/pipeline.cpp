@@ -14,7 +14,6 @@
 #include "data_tools/lbs_torch.h"
 #include "data_tools/mesh.h"
 #include "models/edge_conv.h"
-#include "train/module_options.h"
 
 namespace amt {
 namespace {
@@ -35,19 +34,6 @@ std::string joined(const std::vector<std::string>& names) {
   for (size_t i = 0; i < names.size() && i < 4; ++i) out << (i ? ", " : "") << names[i];
   if (names.size() > 4) out << ", ...";
   return out.str();
-}
-
-// Builds a network from a checkpoint's stored options, loads its tensors, freezes it for inference.
-template <typename Net, typename Options>
-Net load_network(const std::string& path, ModuleKind kind, CheckpointInfo& info) {
-  info = read_checkpoint_info(path, kind);
-  Options options;
-  options_from_json(info.options_json, path, options);
-  Net net(options);
-  load_checkpoint(path, kind, *net, nullptr);
-  net->eval();
-  for (auto& p : net->parameters()) p.set_requires_grad(false);
-  return net;
 }
 
 void check_joints_option(const std::string& path, int64_t num_joints, int64_t J) {
@@ -141,13 +127,13 @@ ModelBundle load_model_bundle(const std::string& dir) {
 
   CheckpointInfo info;
   std::string path = require(kSegmenterCheckpoint, ModuleKind::kSegmenter);
-  bundle.segmenter = load_network<ApparelSegmenter, ApparelSegmenterOptions>(path, ModuleKind::kSegmenter, info);
+  bundle.segmenter = load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(path, ModuleKind::kSegmenter, info);
   check_skeleton(path, info);
   bundle.infos.push_back(info);
   const int64_t J = bundle.num_joints();
 
   path = require(kSkinningCheckpoint, ModuleKind::kSkinning);
-  bundle.skinning = load_network<SkinningPredictor, SkinningPredictorOptions>(path, ModuleKind::kSkinning, info);
+  bundle.skinning = load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(path, ModuleKind::kSkinning, info);
   check_skeleton(path, info);
   check_joints_option(path, bundle.skinning->options.num_joints, J);
   AMT_CHECK(bundle.skinning->options.variant == SkinningVariant::kGeodesicAttention, path,
@@ -156,13 +142,14 @@ ModelBundle load_model_bundle(const std::string& dir) {
   bundle.infos.push_back(info);
 
   path = require(kApparelCheckpoint, ModuleKind::kApparel);
-  bundle.apparel = load_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
+  bundle.apparel =
+      load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
   check_skeleton(path, info);
   check_joints_option(path, bundle.apparel->options.num_joints, J);
   bundle.infos.push_back(info);
 
   path = require(kRefinerCheckpoint, ModuleKind::kRefiner);
-  bundle.refiner = load_network<JointRefiner, JointRefinerOptions>(path, ModuleKind::kRefiner, info);
+  bundle.refiner = load_frozen_network<JointRefiner, JointRefinerOptions>(path, ModuleKind::kRefiner, info);
   check_skeleton(path, info);
   bundle.infos.push_back(info);
 
@@ -170,7 +157,7 @@ ModelBundle load_model_bundle(const std::string& dir) {
     const std::string p = path_of(file);
     if (!fs::exists(p, error)) return;
     CheckpointInfo variant_info;
-    out = load_network<SkinningPredictor, SkinningPredictorOptions>(p, ModuleKind::kSkinning, variant_info);
+    out = load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(p, ModuleKind::kSkinning, variant_info);
     check_skeleton(p, variant_info);
     check_joints_option(p, out->options.num_joints, J);
     AMT_CHECK(out->options.variant == variant, p, ": options.variant: expected the ", variant_name(variant),

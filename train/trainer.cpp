@@ -136,14 +136,9 @@ struct Task {
 // A trained module loaded for inference (the refiner's inputs): kind checked, skeleton checked.
 template <typename Net, typename Options>
 Net load_frozen(const std::string& path, ModuleKind kind, const std::vector<std::string>& joint_names) {
-  const CheckpointInfo info = read_checkpoint_info(path, kind);
+  CheckpointInfo info;
+  Net net = load_frozen_network<Net, Options>(path, kind, info);
   check_checkpoint_skeleton(path, info, joint_names);
-  Options options;
-  options_from_json(info.options_json, path, options);
-  Net net(options);
-  load_checkpoint(path, kind, *net, nullptr);
-  net->eval();
-  for (auto& p : net->parameters()) p.set_requires_grad(false);
   return net;
 }
 

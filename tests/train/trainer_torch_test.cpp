@@ -13,17 +13,16 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <numeric>
 #include <sstream>
 #include <string>
 
 #include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
 #include "data_tools/threads.h"
 #include "micro_dataset.h"
+#include "tests/test_support.h"
 #include "train/module_options.h"
 #include "train/samples.h"
 
@@ -31,6 +30,7 @@ namespace amt {
 namespace {
 
 namespace fs = std::filesystem;
+using test::error_of;
 
 fs::path test_dir() {
   static const fs::path dir = test::test_directory("amt_trainer_test");
@@ -104,15 +104,6 @@ TrainOptions tiny_options(const std::string& out) {
 
 double mean(const std::vector<double>& v, size_t first, size_t count) {
   return std::accumulate(v.begin() + first, v.begin() + first + count, 0.0) / count;
-}
-
-std::string error_of(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
 }
 
 int count_lines(const std::string& path) {
