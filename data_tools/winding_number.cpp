@@ -34,6 +34,15 @@ double solid_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eig
   return 2.0 * std::atan2(numerator, denominator);
 }
 
+// The same in single precision, for the queries' near field: corners are single-precision positions,
+// and their differences to a nearby query point are exact or nearly so.
+float solid_angle(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c) {
+  const float la = a.norm(), lb = b.norm(), lc = c.norm();
+  const float numerator = a.dot(b.cross(c));
+  const float denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+  return 2.0f * std::atan2(numerator, denominator);
+}
+
 // Closest point to p on segment [a, b].
 Eigen::Vector3d closest_point_on_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const Eigen::Vector3d ab = b - a;
@@ -88,7 +97,7 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   validate_mesh(TriMesh{V, F}, "WindingNumberTree");
   AMT_CHECK(std::isfinite(beta) && beta > 0, "WindingNumberTree: beta: expected a positive number, found ", beta);
   faces_ = F;
-  num_vertices_ = V.rows();
+  vertices_ = V;
   triangles_.resize(static_cast<size_t>(F.rows()));
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
     triangles_[f] = {V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose(),
@@ -96,6 +105,8 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   }
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
+  motion_.assign(nodes_.size(), std::numeric_limits<float>::infinity());
+  compact();
 }
 
 // Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
@@ -107,21 +118,54 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
 // the flux is r . N / |r|^3 + D_ij M_ij + 1/2 D_ijk Q_ijk with Q_ijk = (Q_i)_jk. Contracting:
 //   D_ij M_ij    = tr M / |r|^3 - 3 r^T M r / |r|^5
 //   D_ijk Q_ijk  = -3 (2 sum_i (Q_i r)_i + sum_i r_i tr Q_i) / |r|^5 + 15 sum_i r_i r^T Q_i r / |r|^7.
-// Each order shrinks the error by about radius / |r|.
-double WindingNumberTree::FarField::solid_angle(const Eigen::Vector3d& r) const {
-  const double dist2 = r.squaredNorm(), dist = std::sqrt(dist2);
-  const double inv3 = 1.0 / (dist2 * dist), inv5 = inv3 / dist2, inv7 = inv5 / dist2;
-  const double order0 = r.dot(normal_sum) * inv3;
-  const double order1 = first_moment.trace() * inv3 - 3.0 * r.dot(first_moment * r) * inv5;
-  double diagonal = 0, traces = 0, cubic = 0;
-  for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d Qr = second_moment[i] * r;
-    diagonal += Qr[i];
-    traces += r[i] * second_moment[i].trace();
-    cubic += r[i] * r.dot(Qr);
+// Each order shrinks the error by about radius / |r|. Only the symmetric parts of M and Q enter the
+// contractions, which is what QueryNode keeps (compact() below).
+float WindingNumberTree::QueryNode::solid_angle(const Eigen::Vector3f& r) const {
+  const float x = r.x(), y = r.y(), z = r.z();
+  const float inv2 = 1.0f / r.squaredNorm(), inv1 = std::sqrt(inv2);
+  const float inv3 = inv2 * inv1, inv5 = inv3 * inv2, inv7 = inv5 * inv2;
+  const float rMr = m_sym[0] * x * x + m_sym[1] * y * y + m_sym[2] * z * z +
+                    2.0f * (m_sym[3] * x * y + m_sym[4] * x * z + m_sym[5] * y * z);
+  const float c = x * x * (cubic[0] * x + cubic[1] * y + cubic[2] * z) + x * (cubic[3] * y * y + cubic[4] * y * z + cubic[5] * z * z) +
+                  y * y * (cubic[6] * y + cubic[7] * z) + z * z * (cubic[8] * y + cubic[9] * z);
+  return (r.dot(normal_sum) + trace_m) * inv3 - (3.0f * rMr + 1.5f * r.dot(w)) * inv5 + 7.5f * c * inv7;
+}
+
+void WindingNumberTree::compact() {
+  query_nodes_.resize(nodes_.size());
+  const double beta2 = beta_ * beta_;
+#pragma omp parallel for schedule(static, 256)
+  for (int64_t n = 0; n < int64_t(nodes_.size()); ++n) {
+    const Node& node = nodes_[size_t(n)];
+    const FarField& far = node.far_field;
+    QueryNode& q = query_nodes_[size_t(n)];
+    q.box = node.box;
+    q.center = far.center.cast<float>();
+    q.open2 = float(beta2 * node.radius * node.radius);
+    q.normal_sum = far.normal_sum.cast<float>();
+    q.trace_m = float(far.first_moment.trace());
+    const Eigen::Matrix3d& M = far.first_moment;
+    const double m_sym[6] = {M(0, 0), M(1, 1), M(2, 2), 0.5 * (M(0, 1) + M(1, 0)), 0.5 * (M(0, 2) + M(2, 0)),
+                             0.5 * (M(1, 2) + M(2, 1))};
+    for (int k = 0; k < 6; ++k) q.m_sym[k] = float(m_sym[k]);
+    // Q_ijk = (Q_i)_jk. Monomial r_i r_j r_k with i <= j <= k, numbered as in QueryNode::cubic.
+    static constexpr int kMonomial[3][3][3] = {{{0, 1, 2}, {1, 3, 4}, {2, 4, 5}},
+                                               {{1, 3, 4}, {3, 6, 7}, {4, 7, 8}},
+                                               {{2, 4, 5}, {4, 7, 8}, {5, 8, 9}}};
+    double cubic[10] = {};
+    Eigen::Vector3d w = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        w[j] += 2.0 * far.second_moment[i](i, j);  // 2 sum_i Q_iij
+        w[i] += far.second_moment[i](j, j);        // sum_j Q_ijj
+        for (int k = 0; k < 3; ++k) cubic[kMonomial[i][j][k]] += far.second_moment[i](j, k);
+      }
+    }
+    q.w = w.cast<float>();
+    for (int k = 0; k < 10; ++k) q.cubic[k] = float(cubic[k]);
+    q.motion = motion_[size_t(n)];
+    q.left = node.left, q.right = node.right, q.first = node.first, q.count = node.count;
   }
-  const double order2 = 0.5 * (-3.0 * (2.0 * diagonal + traces) * inv5 + 15.0 * cubic * inv7);
-  return order0 + order1 + order2;
 }
 
 Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
@@ -235,23 +279,23 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
   return index;
 }
 
-double WindingNumberTree::winding_number(const Eigen::Vector3f& p) const {
-  const Eigen::Vector3d q = to_double(p);
-  const double beta2 = beta_ * beta_;
+double WindingNumberTree::winding_number(const Eigen::Vector3f& q) const {
   double omega = 0;  // total solid angle
   int32_t stack[kMaxStack];
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    const Eigen::Vector3d r = node.far_field.center - q;
-    if (r.squaredNorm() > beta2 * node.radius * node.radius) {
-      omega += node.far_field.solid_angle(r);
+    const QueryNode& node = query_nodes_[size_t(stack[--top])];
+    const Eigen::Vector3f r = node.center - q;
+    if (r.squaredNorm() > node.open2) {
+      omega += node.solid_angle(r);
     } else if (node.is_leaf()) {
+      float leaf = 0;
       for (int32_t t = node.first; t < node.first + node.count; ++t) {
-        const Triangle& tri = triangles_[t];
-        omega += solid_angle(to_double(tri.a) - q, to_double(tri.b) - q, to_double(tri.c) - q);
+        const Triangle& tri = triangles_[size_t(t)];
+        leaf += solid_angle(Eigen::Vector3f(tri.a - q), Eigen::Vector3f(tri.b - q), Eigen::Vector3f(tri.c - q));
       }
+      omega += leaf;
     } else {
       stack[top++] = node.left;
       stack[top++] = node.right;
@@ -264,7 +308,8 @@ double WindingNumberTree::exact_winding_number(const Eigen::Vector3f& p) const {
   const Eigen::Vector3d q = to_double(p);
   double omega = 0;
   for (const Triangle& tri : triangles_) {
-    omega += solid_angle(to_double(tri.a) - q, to_double(tri.b) - q, to_double(tri.c) - q);
+    omega += solid_angle(Eigen::Vector3d(to_double(tri.a) - q), Eigen::Vector3d(to_double(tri.b) - q),
+                         Eigen::Vector3d(to_double(tri.c) - q));
   }
   return omega / kFourPi;
 }
@@ -282,7 +327,7 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
+    const QueryNode& node = query_nodes_[size_t(stack[--top])];
     if (static_cast<double>(node.box.squaredExteriorDistance(p)) >= best2) continue;
     if (node.is_leaf()) {
       for (int32_t t = node.first; t < node.first + node.count; ++t) {
@@ -295,8 +340,8 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
         }
       }
     } else {
-      const float d_left = nodes_[node.left].box.squaredExteriorDistance(p);
-      const float d_right = nodes_[node.right].box.squaredExteriorDistance(p);
+      const float d_left = query_nodes_[size_t(node.left)].box.squaredExteriorDistance(p);
+      const float d_right = query_nodes_[size_t(node.right)].box.squaredExteriorDistance(p);
       const bool left_first = d_left <= d_right;
       const int32_t near = left_first ? node.left : node.right, far = left_first ? node.right : node.left;
       const float d_near = std::min(d_left, d_right), d_far = std::max(d_left, d_right);
@@ -309,27 +354,65 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
 }
 
 void WindingNumberTree::refit(const MatrixX3f& V) {
-  AMT_CHECK(V.rows() == num_vertices_, "WindingNumberTree::refit: V: expected ", num_vertices_,
+  AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());
   AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
+  shift_ = V.rows() > 0 ? Eigen::Vector3f((V.cast<double>() - vertices_.cast<double>()).colwise().mean().cast<float>())
+                        : Eigen::Vector3f::Zero();
   const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
   // Leaves own disjoint triangle ranges: refresh their corners and fit them in parallel.
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
     Node& node = nodes_[n];
     if (!node.is_leaf()) continue;
+    float motion = 0;
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
       Triangle& tri = triangles_[t];
+      for (int k = 0; k < 3; ++k) {
+        const int32_t v = faces_(tri.face, k);
+        motion = std::max(motion, (V.row(v) - vertices_.row(v) - shift_.transpose()).norm());
+      }
       tri.a = V.row(faces_(tri.face, 0)).transpose();
       tri.b = V.row(faces_(tri.face, 1)).transpose();
       tri.c = V.row(faces_(tri.face, 2)).transpose();
     }
+    motion_[size_t(n)] = motion;
     fit(node);
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
-    if (!nodes_[n].is_leaf()) merge_children(n);
+    if (nodes_[n].is_leaf()) continue;
+    merge_children(n);
+    motion_[size_t(n)] = std::max(motion_[size_t(nodes_[n].left)], motion_[size_t(nodes_[n].right)]);
   }
+  vertices_ = V;
+  compact();
+}
+
+bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion) const {
+  if (!(point_motion >= 0) || !std::isfinite(point_motion)) return false;
+  const Eigen::Vector3d q = to_double(p);
+  int32_t stack[kMaxStack];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const QueryNode& node = query_nodes_[size_t(stack[--top])];
+    // 1 um of slack covers the rounding of the single-precision boxes; inf before the first refit.
+    const float reach = point_motion + node.motion + 1e-6f;
+    if (!(node.box.squaredExteriorDistance(p) > reach * reach)) {
+      if (!node.is_leaf()) {
+        stack[top++] = node.left;
+        stack[top++] = node.right;
+        continue;
+      }
+      for (int32_t t = node.first; t < node.first + node.count; ++t) {
+        const Triangle& tri = triangles_[size_t(t)];
+        const Eigen::Vector3d x = closest_point_on_triangle(q, to_double(tri.a), to_double(tri.b), to_double(tri.c));
+        if (!((x - q).squaredNorm() > double(reach) * double(reach))) return false;
+      }
+    }
+  }
+  return true;
 }
 
 Eigen::VectorXd WindingNumberTree::winding_numbers(const MatrixX3f& P) const {

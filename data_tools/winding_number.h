@@ -68,7 +68,23 @@ class WindingNumberTree {
   /// the boxes overlap much more than at construction (a posed body of a skinned character does not).
   /// This is what the runtime does per frame instead of building a tree over the posed body.
   /// Throws amt::Error on a row count other than the construction's or on non-finite positions.
+  ///
+  /// A refit also records how far the surface moved since the previous positions, for stays_clear().
   void refit(const MatrixX3f& V);
+
+  /// Mean displacement of the surface's vertices in the last refit (zero after a build).
+  const Eigen::Vector3f& shift() const { return shift_; }
+
+  /// True when a point now at p, which moved by at most `point_motion` metres relative to shift()
+  /// since the previous refit, cannot have met the surface meanwhile: with the point and every vertex
+  /// moving on straight lines over the same time, no triangle came within the point's path. Then
+  /// the point is on the same side of a closed surface as before (its winding number, an integer off
+  /// the surface, could not change). The test: every triangle T is farther from p than point_motion
+  /// plus the largest displacement of T's corners relative to shift(), checked top-down with the
+  /// subtrees' boxes and largest displacements; it stops at the first triangle too near. Always false
+  /// before the first refit. This is what lets the runtime skip the winding number of most apparel
+  /// vertices from one frame to the next (infer/penetration_resolution.h).
+  bool stays_clear(const Eigen::Vector3f& p, float point_motion) const;
 
  private:
   // One triangle's corners, stored in tree order so that a leaf's triangles are contiguous.
@@ -84,13 +100,10 @@ class WindingNumberTree {
     Eigen::Vector3d normal_sum;        // N = sum_t a_t n_t
     Eigen::Matrix3d first_moment;      // M = sum_t a_t n_t (x_t - c)^T
     Eigen::Matrix3d second_moment[3];  // Q_i = sum_t a_t n_t[i] S_t, S_t = mean of (x - c)(x - c)^T over t
-
-    // Solid angle of the subtree seen from q = c - r, expanded to second order (accurate when |r| is
-    // a few times the subtree's radius).
-    double solid_angle(const Eigen::Vector3d& r) const;
   };
 
-  // A tree node: a leaf owns triangles_[first, first + count); an inner node has two children.
+  // A tree node as built and refitted: a leaf owns triangles_[first, first + count); an inner node has
+  // two children. Double precision, full moments: merging children shifts them to the parent's centre.
   struct Node {
     Eigen::AlignedBox3f box;        // bounds of the subtree's triangles
     FarField far_field;             // expansion used when the query point is far
@@ -100,6 +113,28 @@ class WindingNumberTree {
     int32_t left = -1, right = -1;  // children, -1 for a leaf
     int32_t first = 0, count = 0;   // leaf triangles triangles_[first, first + count)
     bool is_leaf() const { return left < 0; }
+  };
+
+  // What a query reads of a node: the far field contracted to the coefficients its evaluation uses, in
+  // single precision (152 bytes against the Node's 420), so that the hot part of a body's tree stays in
+  // cache. The flux of the expansion seen from q = center - r (FarField::solid_angle) only depends on
+  // the symmetric part of M and on the fully symmetrised Q:
+  //   r.N / |r|^3 + tr M / |r|^3 - 3 r^T M r / |r|^5 - 3/2 r.w / |r|^5 + 15/2 C(r) / |r|^7,
+  //   w_k = 2 sum_i Q_iik + sum_j Q_kjj,   C(r) = sum_ijk Q_ijk r_i r_j r_k (10 monomial coefficients).
+  struct QueryNode {
+    Eigen::AlignedBox3f box;
+    Eigen::Vector3f center;
+    float open2 = 0;             // (beta radius)^2: nearer than this the node is opened
+    Eigen::Vector3f normal_sum;  // N
+    float trace_m = 0;           // tr M
+    float m_sym[6] = {};         // M's symmetric part: xx, yy, zz, xy, xz, yz
+    Eigen::Vector3f w;
+    float cubic[10] = {};        // C's coefficients of x^3, x^2 y, x^2 z, x y^2, x y z, x z^2, y^3, y^2 z, y z^2, z^3
+    float motion = 0;            // largest corner displacement relative to shift_ in the last refit (inf: none yet)
+    int32_t left = -1, right = -1, first = 0, count = 0;
+    bool is_leaf() const { return left < 0; }
+    // Solid angle of the subtree seen from q = center - r, by its second-order expansion.
+    float solid_angle(const Eigen::Vector3f& r) const;
   };
 
   // Builds the subtree over triangles_[first, first + count) and returns its node index.
@@ -112,10 +147,16 @@ class WindingNumberTree {
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
   void merge_children(int32_t index);
 
-  MatrixX3i faces_;  // the construction's F, for refit
-  int64_t num_vertices_ = 0;
+  // Rewrites query_nodes_ from nodes_ (after a build or a refit).
+  void compact();
+
+  MatrixX3i faces_;     // the construction's F, for refit
+  MatrixX3f vertices_;  // positions of the last build or refit, for the displacements of the next
+  Eigen::Vector3f shift_ = Eigen::Vector3f::Zero();
+  std::vector<float> motion_;  // per node: largest corner displacement relative to shift_ (inf: none yet)
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
+  std::vector<QueryNode> query_nodes_;  // nodes_ as the queries read them, same indices
   double beta_;
 };
 

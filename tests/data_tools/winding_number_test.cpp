@@ -5,12 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <utility>
 
 #include "data_tools/error.h"
 #include "data_tools/mesh.h"
+#include "data_tools/shapes.h"
 
 namespace amt {
 namespace {
@@ -222,6 +224,51 @@ TEST(WindingNumberRefit, MatchesAFreshBuildOnTheMovedSurface) {
     EXPECT_NEAR(refitted.distance(p), rest.distance(p), 1e-6f);
   }
   EXPECT_THROW(refitted.refit(sphere.V.topRows(10)), Error);
+}
+
+// stays_clear: never before a refit; after a pure translation the surface did not move relative to
+// its shift, so only the point's own motion counts against its distance; after a growth about the
+// centre every corner moved 0.05 relative to a zero shift, which counts too.
+TEST(WindingNumberStaysClear, BoundsTheMotionOfPointAndSurface) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const TriMesh sphere = icosphere(3, 0.5f, center);  // its polygon lies within 2 mm inside the sphere
+  WindingNumberTree tree(sphere.V, sphere.F);
+  const Eigen::Vector3f up(0.0f, 1.0f, 0.0f);
+  EXPECT_FALSE(tree.stays_clear(center + 2.0f * up, 0.0f));
+
+  const Eigen::Vector3f u(0.1f, 0.0f, -0.05f);
+  MatrixX3f moved = sphere.V;
+  moved.rowwise() += u.transpose();
+  tree.refit(moved);
+  EXPECT_LT((tree.shift() - u).norm(), 1e-6f);
+  const Eigen::Vector3f c1 = center + u;
+  // 0.05 to 0.052 from the moved surface.
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.55f * up, 0.045f));
+  EXPECT_FALSE(tree.stays_clear(c1 + 0.55f * up, 0.055f));
+  EXPECT_TRUE(tree.stays_clear(c1, 0.49f));  // the centre, 0.498 to 0.5 from everything
+  EXPECT_FALSE(tree.stays_clear(c1, 0.51f));
+  EXPECT_FALSE(tree.stays_clear(c1, std::numeric_limits<float>::quiet_NaN()));
+
+  // Grow by 10 % about the centre: the mean displacement is (nearly) zero, every corner moves 0.05.
+  MatrixX3f grown = moved;
+  for (Eigen::Index i = 0; i < grown.rows(); ++i) grown.row(i) = c1.transpose() + 1.1f * (moved.row(i) - c1.transpose());
+  tree.refit(grown);
+  EXPECT_LT(tree.shift().norm(), 1e-3f);
+  // 0.15 to 0.152 from the grown surface: clear for a point motion below 0.15 - 0.05 (less the shift).
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.7f * up, 0.09f));
+  EXPECT_FALSE(tree.stays_clear(c1 + 0.7f * up, 0.11f));
+}
+
+// is_closed_surface (data_tools/mesh.h): closed and consistently oriented, or not.
+TEST(ClosedSurface, CubesWithAndWithoutHolesOrFlips) {
+  const TriMesh cube = unit_cube();
+  EXPECT_TRUE(is_closed_surface(cube.F));
+  EXPECT_TRUE(is_closed_surface(merge_meshes({cube, icosphere(1, 0.3f, Eigen::Vector3f(3, 0, 0))}).F));
+  EXPECT_FALSE(is_closed_surface(cube.F.topRows(11)));  // one triangle missing: a hole
+  MatrixX3i flipped = cube.F;
+  std::swap(flipped(4, 1), flipped(4, 2));
+  EXPECT_FALSE(is_closed_surface(flipped));  // one triangle turned inside out
+  EXPECT_TRUE(is_closed_surface(MatrixX3i(0, 3)));
 }
 
 TEST(WindingNumber, RejectsBadInput) {
