@@ -45,6 +45,28 @@ MatrixX2i unique_edges(const MatrixX3i& F) {
   return E;
 }
 
+bool is_closed_surface(const MatrixX3i& F) {
+  // Each directed side i -> j counts +1 for the undirected edge (min, max) when i < j, -1 otherwise;
+  // the surface is closed when every edge sums to zero.
+  std::vector<std::pair<std::pair<int32_t, int32_t>, int>> sides;
+  sides.reserve(static_cast<size_t>(F.rows()) * 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int32_t a = F(f, k), b = F(f, (k + 1) % 3);
+      if (a != b) sides.push_back({std::minmax(a, b), a < b ? 1 : -1});
+    }
+  }
+  std::sort(sides.begin(), sides.end());
+  for (size_t i = 0; i < sides.size();) {
+    int sum = 0;
+    size_t j = i;
+    for (; j < sides.size() && sides[j].first == sides[i].first; ++j) sum += sides[j].second;
+    if (sum != 0) return false;
+    i = j;
+  }
+  return true;
+}
+
 Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E) {
   Adjacency adj;
   adj.offsets.assign(static_cast<size_t>(num_vertices) + 1, 0);

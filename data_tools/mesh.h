@@ -29,6 +29,11 @@ void validate_mesh(const TriMesh& mesh, const std::string& source);
 /// Returns #E by 2.
 MatrixX2i unique_edges(const MatrixX3i& F);
 
+/// True when the oriented faces have no boundary: every edge is crossed as often from i to j as from
+/// j to i (a closed, consistently oriented surface, possibly with several parts, touching or
+/// self-intersecting). Off such a surface the winding number is an integer. An empty F is closed.
+bool is_closed_surface(const MatrixX3i& F);
+
 /// Compressed vertex adjacency: the neighbours of vertex i are
 /// neighbors[offsets[i] .. offsets[i+1]), sorted ascending.
 struct Adjacency {

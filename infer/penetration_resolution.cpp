@@ -33,6 +33,7 @@ PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<u
   }
   body_faces_.resize(Eigen::Index(faces.size()), 3);
   for (size_t f = 0; f < faces.size(); ++f) body_faces_.row(Eigen::Index(f)) = faces[f].transpose();
+  closed_body_ = is_closed_surface(body_faces_);
   // Apparel graph: mesh edges with both ends apparel, numbered by apparel position.
   const MatrixX2i E = unique_edges(F);
   std::vector<Eigen::Vector2i> inner;
@@ -57,16 +58,46 @@ const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
   return *tree_;
 }
 
-Penetration PenetrationResolver::measure(const MatrixX3f& V) {
+int PenetrationResolver::classify(const MatrixX3f& V, const WindingNumberTree& tree) {
+  const int Na = int(apparel_.size());
+  // Carry-over is exact only on a closed body, where a verdict changes only by meeting the surface.
+  const bool carry = closed_body_ && previous_.rows() == Na;
+  previous_.resize(Na, 3);
+  inside_.resize(size_t(Na));
+  const Eigen::Vector3f shift = tree.shift();
+  int carried = 0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : carried)
+  for (int k = 0; k < Na; ++k) {
+    const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+    if (carry && tree.stays_clear(p, (p - previous_.row(k).transpose() - shift).norm())) {
+      ++carried;
+    } else {
+      inside_[size_t(k)] = tree.inside(p);
+    }
+    previous_.row(k) = p.transpose();
+  }
+  return carried;
+}
+
+Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
   Penetration p;
   p.total = int(apparel_.size());
+  if (carried) *carried = 0;
   if (apparel_.empty() || body_faces_.rows() == 0) return p;
   AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   const WindingNumberTree& tree = posed_body(V);
-  MatrixX3f A(Eigen::Index(apparel_.size()), 3);
-  for (size_t k = 0; k < apparel_.size(); ++k) A.row(Eigen::Index(k)) = V.row(apparel_[k]);
-  return penetration(A, tree);
+  const int c = classify(V, tree);
+  if (carried) *carried = c;
+  std::vector<float> depth(apparel_.size(), 0.0f);
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int k = 0; k < int(apparel_.size()); ++k) {
+    if (inside_[size_t(k)]) depth[size_t(k)] = tree.distance(V.row(apparel_[size_t(k)]).transpose());
+  }
+  for (size_t k = 0; k < depth.size(); ++k) {  // summed in order: the same total on any thread count
+    if (inside_[k]) ++p.inside, p.depth_sum_cm += 100.0 * double(depth[k]);
+  }
+  return p;
 }
 
 PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
@@ -77,17 +108,17 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   const WindingNumberTree& tree = posed_body(V);
+  report.carried = classify(V, tree);
   // Push: every inside vertex to its closest body point plus the margin along the way out.
   std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
   std::vector<float> depth(size_t(Na), 0.0f);
-  std::vector<uint8_t> inside(size_t(Na), 0);
-#pragma omp parallel for schedule(dynamic, 256)
+  const std::vector<uint8_t>& inside = inside_;
+#pragma omp parallel for schedule(dynamic, 64)
   for (int k = 0; k < Na; ++k) {
+    if (!inside[size_t(k)]) continue;
     const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
-    if (!tree.inside(p)) continue;
     Eigen::Vector3f closest;
     const float d = tree.distance(p, &closest);
-    inside[size_t(k)] = 1;
     depth[size_t(k)] = d;
     if (d > 1e-9f) {
       push[size_t(k)] = (closest - p) * ((d + options_.margin) / d);

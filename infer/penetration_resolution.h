@@ -13,7 +13,10 @@
 //
 // Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
 // refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
-// rebuilt: the body's faces do not change between frames, only its positions.
+// rebuilt: the body's faces do not change between frames, only its positions. And when the body part
+// is a closed surface, an apparel vertex keeps the previous frame's verdict without a winding-number
+// query when neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear):
+// the verdict is then exactly what the query would say, and most vertices away from the skin skip it.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -38,9 +41,11 @@ struct PenetrationOptions {
 /// What a frame's resolution did.
 ///   before, after   apparel vertices inside the body before and after (data_tools/metrics.h)
 ///   pushed          vertices moved out of the body; smoothed: neighbours moved with them
+///   carried         apparel vertices whose inside verdict carried over from the previous frame
+///                   (no winding-number query; see the file comment)
 struct PenetrationReport {
   Penetration before, after;
-  int pushed = 0, smoothed = 0;
+  int pushed = 0, smoothed = 0, carried = 0;
 };
 
 /// Resolves the penetration of a character's apparel into its body, frame after frame. Built once per
@@ -54,7 +59,8 @@ class PenetrationResolver {
   PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask, PenetrationOptions options = {});
 
   /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
-  Penetration measure(const MatrixX3f& V);
+  /// `carried`, when given, receives the number of verdicts carried over from the previous call.
+  Penetration measure(const MatrixX3f& V, int* carried = nullptr);
 
   /// Pushes the penetrating apparel vertices of V (#V by 3, metres) out, in place, and reports the
   /// penetration before and after. Deterministic; the queries run on the OpenMP threads.
@@ -64,10 +70,16 @@ class PenetrationResolver {
   int num_apparel() const { return int(apparel_.size()); }
   int num_body() const { return int(body_.size()); }
   int num_body_faces() const { return int(body_faces_.rows()); }
+  /// Whether the body part is a closed surface, so that verdicts may carry over between frames.
+  bool closed_body() const { return closed_body_; }
 
  private:
   // The tree over the closed body part posed as in V: built on the first call, refitted after.
   const WindingNumberTree& posed_body(const MatrixX3f& V);
+
+  // Inside verdicts of V's apparel vertices into inside_ (by apparel position), with the tree posed
+  // as in V; returns how many carried over from the previous call.
+  int classify(const MatrixX3f& V, const WindingNumberTree& tree);
 
   PenetrationOptions options_;
   std::vector<int32_t> apparel_, body_;  // vertex ids of each part, ascending
@@ -75,6 +87,9 @@ class PenetrationResolver {
   Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
   std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
   MatrixX3f body_scratch_;               // body positions of the last call
+  bool closed_body_ = false;             // is_closed_surface(body_faces_)
+  MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)
+  std::vector<uint8_t> inside_;          // their verdicts
 };
 
 }  // namespace amt

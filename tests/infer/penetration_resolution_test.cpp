@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 #include "data_tools/shapes.h"
 #include "data_tools/winding_number.h"
 
@@ -111,6 +113,64 @@ TEST(PenetrationResolver, FollowsAMovingBodyAcrossFrames) {
     EXPECT_EQ(got.pushed, want.pushed) << "frame " << frame;
     EXPECT_EQ(got.after.inside, 0) << "frame " << frame;
     EXPECT_LT((V - V_fresh).cwiseAbs().maxCoeff(), 1e-5f) << "frame " << frame;
+  }
+}
+
+// Verdicts carried over between frames (the body is closed) are those of a fresh tree on every frame,
+// while the sheet sweeps through the moving sphere so that its vertices enter and leave it; the far
+// part of the sheet carries its verdicts, the part near the sphere is tested again.
+TEST(PenetrationResolver, CarriedVerdictsEqualFreshOnesWhileASheetSweepsThroughTheBody) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationResolver resolver(c.mesh.F, c.mask), resolving(c.mesh.F, c.mask);
+  ASSERT_TRUE(resolver.closed_body());
+  int carried_total = 0, entered = 0, left = 0, previous_inside = -1;
+  for (int frame = 0; frame < 40; ++frame) {
+    MatrixX3f V = c.mesh.V;
+    V.rowwise() += Eigen::RowVector3f(0.01f * float(frame), 0.0f, 0.0f);  // body and sheet drift together
+    for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) V(i, 2) += 0.3f - 0.02f * float(frame);  // sheet sinks
+    PenetrationResolver fresh(c.mesh.F, c.mask);
+    const Penetration expected = fresh.measure(V);
+    int carried = 0;
+    const Penetration got = resolver.measure(V, &carried);
+    EXPECT_EQ(got.inside, expected.inside) << "frame " << frame;
+    EXPECT_NEAR(got.depth_sum_cm, expected.depth_sum_cm, 1e-3) << "frame " << frame;
+    MatrixX3f V_resolved = V;
+    const PenetrationReport report = resolving.resolve(V_resolved);
+    EXPECT_EQ(report.before.inside, expected.inside) << "frame " << frame;
+    EXPECT_EQ(report.after.inside, 0) << "frame " << frame;
+    EXPECT_EQ(report.carried, carried) << "frame " << frame;
+    carried_total += carried;
+    if (frame == 0) {
+      EXPECT_EQ(carried, 0);
+    }
+    if (previous_inside >= 0) entered += expected.inside > previous_inside, left += expected.inside < previous_inside;
+    previous_inside = expected.inside;
+  }
+  // The sheet crosses the whole sphere (z from 0.4 to -0.38): vertices enter, then leave.
+  EXPECT_GT(entered, 3);
+  EXPECT_GT(left, 3);
+  EXPECT_GT(carried_total, 39 * 441 / 2);
+  EXPECT_LT(carried_total, 39 * 441);
+}
+
+// An open body (a hemisphere bowl) never carries a verdict: off an open surface the winding number is
+// not an integer, and a point can pass from inside to outside around the rim without meeting it.
+TEST(PenetrationResolver, OpenBodyTestsEveryVertexEveryFrame) {
+  SheetThroughSphere c = sheet_through_sphere();
+  std::vector<Eigen::Vector3i> kept;
+  for (Eigen::Index f = 0; f < c.mesh.F.rows(); ++f) {
+    const bool body = c.mesh.F(f, 0) < c.body_vertices;
+    const float z = (c.mesh.V.row(c.mesh.F(f, 0)) + c.mesh.V.row(c.mesh.F(f, 1)) + c.mesh.V.row(c.mesh.F(f, 2)))(2) / 3.0f;
+    if (!body || z < 0.0f) kept.push_back(c.mesh.F.row(f).transpose());
+  }
+  MatrixX3i F(Eigen::Index(kept.size()), 3);
+  for (size_t f = 0; f < kept.size(); ++f) F.row(Eigen::Index(f)) = kept[f].transpose();
+  PenetrationResolver resolver(F, c.mask);
+  EXPECT_FALSE(resolver.closed_body());
+  for (int frame = 0; frame < 3; ++frame) {
+    int carried = -1;
+    resolver.measure(c.mesh.V, &carried);
+    EXPECT_EQ(carried, 0) << "frame " << frame;
   }
 }
 
