@@ -45,9 +45,12 @@ MatrixX2i unique_edges(const MatrixX3i& F) {
   return E;
 }
 
-bool is_closed_surface(const MatrixX3i& F) {
-  // Each directed side i -> j counts +1 for the undirected edge (min, max) when i < j, -1 otherwise;
-  // the surface is closed when every edge sums to zero.
+namespace {
+
+// The sides i -> j of the faces that no side j -> i balances, as many times as unbalanced: the
+// boundary of the surface as a chain, empty for a closed surface.
+std::vector<std::pair<int32_t, int32_t>> unbalanced_sides(const MatrixX3i& F) {
+  // Each side i -> j counts +1 for the undirected edge (min, max) when i < j, -1 otherwise.
   std::vector<std::pair<std::pair<int32_t, int32_t>, int>> sides;
   sides.reserve(static_cast<size_t>(F.rows()) * 3);
   for (Eigen::Index f = 0; f < F.rows(); ++f) {
@@ -57,14 +60,57 @@ bool is_closed_surface(const MatrixX3i& F) {
     }
   }
   std::sort(sides.begin(), sides.end());
+  std::vector<std::pair<int32_t, int32_t>> boundary;
   for (size_t i = 0; i < sides.size();) {
     int sum = 0;
     size_t j = i;
     for (; j < sides.size() && sides[j].first == sides[i].first; ++j) sum += sides[j].second;
-    if (sum != 0) return false;
+    const auto [lo, hi] = sides[i].first;
+    for (int k = 0; k < std::abs(sum); ++k) boundary.push_back(sum > 0 ? std::make_pair(lo, hi) : std::make_pair(hi, lo));
     i = j;
   }
-  return true;
+  return boundary;
+}
+
+}  // namespace
+
+bool is_closed_surface(const MatrixX3i& F) {
+  return unbalanced_sides(F).empty();
+}
+
+HoleFill fill_holes(const MatrixX3i& F, int num_vertices) {
+  const std::vector<std::pair<int32_t, int32_t>> boundary = unbalanced_sides(F);
+  // Holes: connected groups of boundary sides (union-find over their vertices).
+  std::vector<int32_t> parent(static_cast<size_t>(num_vertices));
+  for (int32_t v = 0; v < num_vertices; ++v) parent[size_t(v)] = v;
+  const auto root = [&parent](int32_t v) {
+    while (parent[size_t(v)] != v) v = parent[size_t(v)] = parent[size_t(parent[size_t(v)])];
+    return v;
+  };
+  for (const auto& [a, b] : boundary) {
+    AMT_CHECK(a >= 0 && a < num_vertices && b >= 0 && b < num_vertices, "fill_holes: faces: expected indices in [0, ",
+              num_vertices, "), found ", std::max(a, b));
+    parent[size_t(root(a))] = root(b);
+  }
+  HoleFill fill;
+  std::vector<int32_t> hole_of(static_cast<size_t>(num_vertices), -1);
+  for (const auto& [a, b] : boundary) {
+    for (const int32_t v : {a, b}) {
+      int32_t& h = hole_of[size_t(root(v))];
+      if (h < 0) h = int32_t(fill.holes.size()), fill.holes.emplace_back();
+    }
+  }
+  std::vector<uint8_t> listed(static_cast<size_t>(num_vertices), 0);
+  fill.faces.resize(Eigen::Index(boundary.size()), 3);
+  for (size_t e = 0; e < boundary.size(); ++e) {
+    const auto [a, b] = boundary[e];
+    const int32_t h = hole_of[size_t(root(a))];
+    fill.faces.row(Eigen::Index(e)) << b, a, num_vertices + h;  // the side b -> a balances a -> b
+    for (const int32_t v : {a, b}) {
+      if (!listed[size_t(v)]) listed[size_t(v)] = 1, fill.holes[size_t(h)].push_back(v);
+    }
+  }
+  return fill;
 }
 
 Adjacency vertex_adjacency(int num_vertices, const MatrixX2i& E) {

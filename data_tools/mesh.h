@@ -34,6 +34,18 @@ MatrixX2i unique_edges(const MatrixX3i& F);
 /// self-intersecting). Off such a surface the winding number is an integer. An empty F is closed.
 bool is_closed_surface(const MatrixX3i& F);
 
+/// The holes of a surface closed with fans. The holes are the connected groups of boundary sides
+/// (sides i -> j of F that no side j -> i balances); each boundary side a -> b gets the triangle
+/// (b, a, c) to a new centre vertex c = num_vertices + h of its hole h. F together with `faces` is a
+/// closed surface (is_closed_surface). A closed F gives no holes. Hand-written: CGAL's hole filling
+/// (libcgal-dev) triangulates each loop for quality on a halfedge mesh; a winding-number inside test
+/// only needs the surface closed, by a fan whose centre can follow the moving boundary.
+struct HoleFill {
+  MatrixX3i faces;                          // fan triangles
+  std::vector<std::vector<int32_t>> holes;  // boundary vertices of each hole; its centre is their mean
+};
+HoleFill fill_holes(const MatrixX3i& F, int num_vertices);
+
 /// Compressed vertex adjacency: the neighbours of vertex i are
 /// neighbors[offsets[i] .. offsets[i+1]), sorted ascending.
 struct Adjacency {

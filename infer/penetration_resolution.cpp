@@ -31,9 +31,17 @@ PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<u
     }
     if (body) faces.emplace_back(position[size_t(F(f, 0))], position[size_t(F(f, 1))], position[size_t(F(f, 2))]);
   }
+  // The body part with its holes (where apparel, or vertices the segmenter took for apparel, were cut
+  // away) closed by fans to centres that follow the boundary: an inside test against a closed surface.
   body_faces_.resize(Eigen::Index(faces.size()), 3);
   for (size_t f = 0; f < faces.size(); ++f) body_faces_.row(Eigen::Index(f)) = faces[f].transpose();
-  closed_body_ = is_closed_surface(body_faces_);
+  if (!faces.empty()) {
+    HoleFill fill = fill_holes(body_faces_, int(body_.size()));
+    holes_ = std::move(fill.holes);
+    body_faces_.conservativeResize(Eigen::Index(faces.size()) + fill.faces.rows(), 3);
+    body_faces_.bottomRows(fill.faces.rows()) = fill.faces;
+  }
+  closed_body_ = !faces.empty() && is_closed_surface(body_faces_);
   // Apparel graph: mesh edges with both ends apparel, numbered by apparel position.
   const MatrixX2i E = unique_edges(F);
   std::vector<Eigen::Vector2i> inner;
@@ -48,8 +56,13 @@ PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<u
 }
 
 const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
-  body_scratch_.resize(Eigen::Index(body_.size()), 3);
+  body_scratch_.resize(Eigen::Index(body_.size() + holes_.size()), 3);
   for (size_t k = 0; k < body_.size(); ++k) body_scratch_.row(Eigen::Index(k)) = V.row(body_[k]);
+  for (size_t h = 0; h < holes_.size(); ++h) {
+    Eigen::RowVector3f centre = Eigen::RowVector3f::Zero();
+    for (const int32_t k : holes_[h]) centre += body_scratch_.row(k);
+    body_scratch_.row(Eigen::Index(body_.size() + h)) = centre / float(holes_[h].size());
+  }
   if (tree_) {
     tree_->refit(body_scratch_);
   } else {

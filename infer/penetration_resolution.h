@@ -6,8 +6,11 @@
 // penetrations"); the push is then spread to the untouched apparel neighbours with a decaying
 // weight, so that a pushed vertex does not become a spike in its garment.
 //
-// Inside test: the generalized winding number (data_tools/winding_number.h) against the closed body
-// part, the faces whose three vertices are body vertices, posed as in the frame. The direction out
+// Inside test: the generalized winding number (data_tools/winding_number.h) against the body part,
+// the faces whose three vertices are body vertices, posed as in the frame, with the holes left where
+// apparel was cut away (or where the segmenter took body vertices for apparel) closed by fans to the
+// mean of each hole's boundary (data_tools/mesh.h fill_holes): a closed surface, whose winding number
+// is an integer off it. The direction out
 // is from the vertex to its closest body point: for a closest point inside a triangle this is the
 // triangle's normal, and it stays correct at edges and corners where face normals disagree.
 //
@@ -70,8 +73,10 @@ class PenetrationResolver {
   int num_apparel() const { return int(apparel_.size()); }
   int num_body() const { return int(body_.size()); }
   int num_body_faces() const { return int(body_faces_.rows()); }
-  /// Whether the body part is a closed surface, so that verdicts may carry over between frames.
+  /// Whether the body surface tested against is closed (holes filled), so that verdicts may carry
+  /// over between frames; and the number of holes filled.
   bool closed_body() const { return closed_body_; }
+  int num_filled_holes() const { return int(holes_.size()); }
 
  private:
   // The tree over the closed body part posed as in V: built on the first call, refitted after.
@@ -83,7 +88,9 @@ class PenetrationResolver {
 
   PenetrationOptions options_;
   std::vector<int32_t> apparel_, body_;  // vertex ids of each part, ascending
-  MatrixX3i body_faces_;                 // faces with three body vertices, renumbered into body_
+  MatrixX3i body_faces_;                 // faces with three body vertices, renumbered into body_, then
+                                         // the fans closing the holes (centre of hole h: body_.size() + h)
+  std::vector<std::vector<int32_t>> holes_;  // boundary vertices of each hole, positions in body_
   Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
   std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
   MatrixX3f body_scratch_;               // body positions of the last call

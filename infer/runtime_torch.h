@@ -105,6 +105,8 @@ struct AnimateSummary {
   FrameTimes mean;
   /// Apparel vertices inside the body, summed over frames, before and after resolution.
   Penetration before, after;
+  /// Inside verdicts carried over from the previous frame, summed over frames (PenetrationReport).
+  int64_t carried = 0;
   bool exact_motion = false;
 };
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -269,6 +270,41 @@ TEST(ClosedSurface, CubesWithAndWithoutHolesOrFlips) {
   std::swap(flipped(4, 1), flipped(4, 2));
   EXPECT_FALSE(is_closed_surface(flipped));  // one triangle turned inside out
   EXPECT_TRUE(is_closed_surface(MatrixX3i(0, 3)));
+}
+
+// fill_holes: a cube without its z = 1 side (two triangles) gets one hole of 4 boundary vertices, closed
+// by 4 fan triangles to a centre vertex 8 at the side's middle; the result is the closed cube again
+// (winding number 1 inside, 0 above the missing side). Two separate holes get two centres.
+TEST(ClosedSurface, FillHolesClosesACubeWithAMissingSide) {
+  const TriMesh cube = unit_cube();
+  MatrixX3i open(10, 3);
+  int rows = 0;
+  for (int f = 0; f < 12; ++f) {
+    if (f != 2 && f != 3) open.row(rows++) = cube.F.row(f);  // rows 2 and 3 are the z = 1 side
+  }
+  const HoleFill fill = fill_holes(open, 8);
+  ASSERT_EQ(fill.holes.size(), 1u);
+  std::vector<int32_t> boundary = fill.holes[0];
+  std::sort(boundary.begin(), boundary.end());
+  EXPECT_EQ(boundary, (std::vector<int32_t>{4, 5, 6, 7}));
+  ASSERT_EQ(fill.faces.rows(), 4);
+  EXPECT_EQ(fill.faces.col(2), Eigen::VectorXi::Constant(4, 8));
+  MatrixX3i closed(14, 3);
+  closed << open, fill.faces;
+  EXPECT_TRUE(is_closed_surface(closed));
+  MatrixX3f V(9, 3);
+  V << cube.V, 0.5f, 0.5f, 1.0f;
+  const WindingNumberTree tree(V, closed);
+  EXPECT_NEAR(tree.winding_number(Eigen::Vector3f(0.5f, 0.5f, 0.9f)), 1.0, 1e-6);
+  EXPECT_NEAR(tree.winding_number(Eigen::Vector3f(0.5f, 0.5f, 1.1f)), 0.0, 1e-6);
+  EXPECT_TRUE(fill_holes(cube.F, 8).holes.empty());
+  EXPECT_EQ(fill_holes(cube.F.topRows(11), 8).holes.size(), 1u);
+  // Two holes: the cube without one triangle, plus a far copy without another.
+  MatrixX3i two(22, 3);
+  two << cube.F.topRows(11), (cube.F.bottomRows(11).array() + 8).matrix();
+  const HoleFill both = fill_holes(two, 16);
+  EXPECT_EQ(both.holes.size(), 2u);
+  EXPECT_EQ(both.faces.rows(), 6);
 }
 
 TEST(WindingNumber, RejectsBadInput) {

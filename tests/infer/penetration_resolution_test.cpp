@@ -153,9 +153,10 @@ TEST(PenetrationResolver, CarriedVerdictsEqualFreshOnesWhileASheetSweepsThroughT
   EXPECT_LT(carried_total, 39 * 441);
 }
 
-// An open body (a hemisphere bowl) never carries a verdict: off an open surface the winding number is
-// not an integer, and a point can pass from inside to outside around the rim without meeting it.
-TEST(PenetrationResolver, OpenBodyTestsEveryVertexEveryFrame) {
+// An open body (the lower half of the sphere, a bowl) is closed by a fan over its rim: inside means
+// inside the half ball. A sheet at z = -0.1 then has as many vertices inside as the whole sphere has at
+// z = +0.1 (69, see above), one at z = +0.1 none; verdicts carry over as on a closed body.
+TEST(PenetrationResolver, FillsTheHolesOfAnOpenBody) {
   SheetThroughSphere c = sheet_through_sphere();
   std::vector<Eigen::Vector3i> kept;
   for (Eigen::Index f = 0; f < c.mesh.F.rows(); ++f) {
@@ -166,12 +167,19 @@ TEST(PenetrationResolver, OpenBodyTestsEveryVertexEveryFrame) {
   MatrixX3i F(Eigen::Index(kept.size()), 3);
   for (size_t f = 0; f < kept.size(); ++f) F.row(Eigen::Index(f)) = kept[f].transpose();
   PenetrationResolver resolver(F, c.mask);
-  EXPECT_FALSE(resolver.closed_body());
-  for (int frame = 0; frame < 3; ++frame) {
-    int carried = -1;
-    resolver.measure(c.mesh.V, &carried);
-    EXPECT_EQ(carried, 0) << "frame " << frame;
-  }
+  EXPECT_TRUE(resolver.closed_body());
+  EXPECT_EQ(resolver.num_filled_holes(), 1);
+  MatrixX3f below = c.mesh.V;
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) below(i, 2) -= 0.2f;
+  EXPECT_EQ(resolver.measure(c.mesh.V).inside, 0);
+  int carried = -1;
+  EXPECT_EQ(resolver.measure(below, &carried).inside, 69);
+  EXPECT_LE(carried, 441 - 69);  // the 69 that went inside were tested again
+  EXPECT_GT(carried, 100);       // the sheet's far corners were not
+  EXPECT_EQ(resolver.measure(below, &carried).inside, 69);
+  EXPECT_EQ(carried, 441);  // nothing moved
+  PenetrationResolver unfilled_sphere(c.mesh.F, c.mask);
+  EXPECT_EQ(unfilled_sphere.num_filled_holes(), 0);
 }
 
 TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
