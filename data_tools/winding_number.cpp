@@ -169,48 +169,60 @@ void WindingNumberTree::compact() {
 }
 
 Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
+  // Per-triangle terms in single precision (corners are single precision), sums in double: this runs
+  // over every triangle of the body at every refit, once per frame.
   const int32_t first = node.first, count = node.count;
   FarField& far = node.far_field;
   node.box.setEmpty();
-  node.radius = 0;
   // First pass: bounds, area-weighted centroid and normal sum, and the bounds of the triangle
   // centroids, which choose the split.
   Eigen::AlignedBox3f centroid_box;
   Eigen::Vector3d weighted_centroids = Eigen::Vector3d::Zero(), plain_centroids = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
   double area = 0;
-  far.normal_sum.setZero();
   for (int32_t t = first; t < first + count; ++t) {
-    const Triangle& tri = triangles_[t];
+    const Triangle& tri = triangles_[size_t(t)];
     node.box.extend(tri.a).extend(tri.b).extend(tri.c);
-    centroid_box.extend((tri.a + tri.b + tri.c) / 3.0f);
-    const Eigen::Vector3d a = to_double(tri.a), b = to_double(tri.b), c = to_double(tri.c);
-    const Eigen::Vector3d area_normal = 0.5 * (b - a).cross(c - a);  // a_t n_t
-    const double triangle_area = area_normal.norm();
-    far.normal_sum += area_normal;
-    weighted_centroids += triangle_area * (a + b + c) / 3.0;
-    plain_centroids += (a + b + c) / 3.0;
+    const Eigen::Vector3f centroid = (tri.a + tri.b + tri.c) / 3.0f;
+    centroid_box.extend(centroid);
+    const Eigen::Vector3f area_normal = 0.5f * (tri.b - tri.a).cross(tri.c - tri.a);  // a_t n_t
+    const float triangle_area = area_normal.norm();
+    normal_sum += area_normal.cast<double>();
+    weighted_centroids += double(triangle_area) * centroid.cast<double>();
+    plain_centroids += centroid.cast<double>();
     area += triangle_area;
   }
+  far.normal_sum = normal_sum;
   far.center = area > 0 ? Eigen::Vector3d(weighted_centroids / area) : Eigen::Vector3d(plain_centroids / count);
   node.area = area;
 
   // Second pass, about the centre: moments and radius. Over a triangle with centroid x_t, the mean of
-  // (x - c)(x - c)^T is d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c.
-  far.first_moment.setZero();
-  for (Eigen::Matrix3d& Q : far.second_moment) Q.setZero();
+  // (x - c)(x - c)^T is S_t = d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c; symmetric,
+  // kept as its 6 entries xx, yy, zz, xy, xz, yz.
+  const Eigen::Vector3f center = far.center.cast<float>();
+  double first_moment[3][3] = {}, second_moment[3][6] = {};
+  float radius2 = 0;
   for (int32_t t = first; t < first + count; ++t) {
-    const Triangle& tri = triangles_[t];
-    const Eigen::Vector3d a = to_double(tri.a), b = to_double(tri.b), c = to_double(tri.c);
-    const Eigen::Vector3d area_normal = 0.5 * (b - a).cross(c - a);
-    const Eigen::Vector3d centroid = (a + b + c) / 3.0, d = centroid - far.center;
-    Eigen::Matrix3d spread = d * d.transpose();
-    for (const Eigen::Vector3d* corner : {&a, &b, &c}) {
-      spread += (*corner - centroid) * (*corner - centroid).transpose() / 12.0;
-      node.radius = std::max(node.radius, (*corner - far.center).norm());
+    const Triangle& tri = triangles_[size_t(t)];
+    const Eigen::Vector3f area_normal = 0.5f * (tri.b - tri.a).cross(tri.c - tri.a);
+    const Eigen::Vector3f centroid = (tri.a + tri.b + tri.c) / 3.0f, d = centroid - center;
+    const Eigen::Vector3f ea = tri.a - centroid, eb = tri.b - centroid, ec = tri.c - centroid;
+    const auto spread = [&](int i, int j) { return d[i] * d[j] + (ea[i] * ea[j] + eb[i] * eb[j] + ec[i] * ec[j]) / 12.0f; };
+    const float S[6] = {spread(0, 0), spread(1, 1), spread(2, 2), spread(0, 1), spread(0, 2), spread(1, 2)};
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) first_moment[i][j] += double(area_normal[i] * d[j]);
+      for (int k = 0; k < 6; ++k) second_moment[i][k] += double(area_normal[i] * S[k]);
     }
-    far.first_moment += area_normal * d.transpose();
-    for (int i = 0; i < 3; ++i) far.second_moment[i] += area_normal[i] * spread;
+    radius2 = std::max({radius2, (tri.a - center).squaredNorm(), (tri.b - center).squaredNorm(),
+                        (tri.c - center).squaredNorm()});
   }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) far.first_moment(i, j) = first_moment[i][j];
+    const double* q = second_moment[i];
+    far.second_moment[i] << q[0], q[3], q[4], q[3], q[1], q[5], q[4], q[5], q[2];
+  }
+  // Rounded up by a relative 1e-6 so that single-precision rounding never makes it smaller than exact.
+  node.radius = std::sqrt(double(radius2)) * (1.0 + 1e-6);
   return centroid_box;
 }
 
@@ -365,18 +377,16 @@ void WindingNumberTree::refit(const MatrixX3f& V) {
   for (int32_t n = 0; n < num_nodes; ++n) {
     Node& node = nodes_[n];
     if (!node.is_leaf()) continue;
-    float motion = 0;
+    float motion2 = 0;  // the corners' displacements from their stored (previous) positions
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
-      Triangle& tri = triangles_[t];
-      for (int k = 0; k < 3; ++k) {
-        const int32_t v = faces_(tri.face, k);
-        motion = std::max(motion, (V.row(v) - vertices_.row(v) - shift_.transpose()).norm());
-      }
-      tri.a = V.row(faces_(tri.face, 0)).transpose();
-      tri.b = V.row(faces_(tri.face, 1)).transpose();
-      tri.c = V.row(faces_(tri.face, 2)).transpose();
+      Triangle& tri = triangles_[size_t(t)];
+      const Eigen::Vector3f a = V.row(faces_(tri.face, 0)).transpose(), b = V.row(faces_(tri.face, 1)).transpose(),
+                            c = V.row(faces_(tri.face, 2)).transpose();
+      motion2 = std::max({motion2, (a - tri.a - shift_).squaredNorm(), (b - tri.b - shift_).squaredNorm(),
+                          (c - tri.c - shift_).squaredNorm()});
+      tri.a = a, tri.b = b, tri.c = c;
     }
-    motion_[size_t(n)] = motion;
+    motion_[size_t(n)] = std::sqrt(motion2) * (1.0f + 1e-6f);
     fit(node);
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
