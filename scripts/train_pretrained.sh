@@ -10,7 +10,10 @@
 #
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), and the steps of
 # each run: SEGMENTER_STEPS (12000), SKINNING_STEPS (6000, also for each Table 4 variant, so the
-# three compare at the same budget), APPAREL_STEPS (9000 for the apparel module + refiner).
+# three compare at the same budget), APPAREL_STEPS (4500 for the apparel module + refiner) and
+# APPAREL_WINDOW (20 frames: 3 ground-truth states, then 17 frames the module rolls out on its own
+# predictions; 10-frame windows at 9000 steps, the same frames in all, left it drifting in long
+# rollouts, see models/pretrained/README.md).
 #
 # All five runs go side by side, one thread each: the segmenter, the skinning predictor and its two
 # Table 4 variants, and the apparel module + refiner end to end. Every run uses AdamW at 5e-4 with a
@@ -68,7 +71,7 @@ launch skinning_no_geodesic skinning "${common[@]}" --steps "${SKINNING_STEPS:-6
   --variant no_geodesic --skinning-options "$skinning"
 launch skinning_sorted skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
   --variant sorted --skinning-options "$skinning"
-launch apparel_refiner apparel_refiner "${common[@]}" --steps "${APPAREL_STEPS:-9000}" --window 10 \
+launch apparel_refiner apparel_refiner "${common[@]}" --steps "${APPAREL_STEPS:-4500}" --window "${APPAREL_WINDOW:-20}" \
   --apparel-options "$apparel" --refiner-options "$refiner"
 status=0
 for pid in "${pids[@]}"; do wait "$pid" || status=1; done
