@@ -10,16 +10,16 @@
 // the faces whose three vertices are body vertices, posed as in the frame, with the holes left where
 // apparel was cut away (or where the segmenter took body vertices for apparel) closed by fans to the
 // mean of each hole's boundary (data_tools/mesh.h fill_holes): a closed surface, whose winding number
-// is an integer off it. The direction out
-// is from the vertex to its closest body point: for a closest point inside a triangle this is the
-// triangle's normal, and it stays correct at edges and corners where face normals disagree.
+// is an integer off it. The direction out is from the vertex to its closest body point: for a
+// closest point inside a triangle this is the triangle's normal, and it stays correct at edges and
+// corners where face normals disagree.
 //
 // Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
 // refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
-// rebuilt: the body's faces do not change between frames, only its positions. And when the body part
-// is a closed surface, an apparel vertex keeps the previous frame's verdict without a winding-number
-// query when neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear):
-// the verdict is then exactly what the query would say, and most vertices away from the skin skip it.
+// rebuilt: the body's faces do not change between frames, only its positions. And since that surface
+// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when
+// neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear): the verdict
+// is then exactly what the query would say, and most vertices away from the skin skip it.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -79,7 +79,7 @@ class PenetrationResolver {
   int num_filled_holes() const { return int(holes_.size()); }
 
  private:
-  // The tree over the closed body part posed as in V: built on the first call, refitted after.
+  // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
   const WindingNumberTree& posed_body(const MatrixX3f& V);
 
   // Inside verdicts of V's apparel vertices into inside_ (by apparel position), with the tree posed
@@ -94,7 +94,7 @@ class PenetrationResolver {
   Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
   std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
   MatrixX3f body_scratch_;               // body positions of the last call
-  bool closed_body_ = false;             // is_closed_surface(body_faces_)
+  bool closed_body_ = false;             // is_closed_surface(body_faces_): false only without body faces
   MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)
   std::vector<uint8_t> inside_;          // their verdicts
 };
