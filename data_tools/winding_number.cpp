@@ -369,8 +369,9 @@ void WindingNumberTree::refit(const MatrixX3f& V) {
   AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());
   AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
-  shift_ = V.rows() > 0 ? Eigen::Vector3f((V.cast<double>() - vertices_.cast<double>()).colwise().mean().cast<float>())
-                        : Eigen::Vector3f::Zero();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the vertex displacements, in double: #V terms
+  for (Eigen::Index i = 0; i < V.rows(); ++i) sum += (V.row(i) - vertices_.row(i)).transpose().cast<double>();
+  shift_ = V.rows() > 0 ? Eigen::Vector3f((sum / double(V.rows())).cast<float>()) : Eigen::Vector3f::Zero();
   const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
   // Leaves own disjoint triangle ranges: refresh their corners and fit them in parallel.
 #pragma omp parallel for schedule(dynamic, 32)
