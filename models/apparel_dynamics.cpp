@@ -1,0 +1,343 @@
+#include "models/apparel_dynamics.h"
+
+#include <ATen/ATen.h>
+#include <torch/utils.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <queue>
+#include <string>
+
+#include "data_tools/geodesic.h"
+
+#include "models/pointnet.h"
+
+namespace amt {
+namespace {
+
+// R^T v and R v for rotations R (..., 3, 3) and vectors v (..., 3), elementwise (a batched matmul
+// of 3x3 matrices costs more than the nine products).
+at::Tensor to_frame(const at::Tensor& R, const at::Tensor& v) { return (R * v.unsqueeze(-1)).sum(-2); }
+at::Tensor from_frame(const at::Tensor& R, const at::Tensor& v) { return (R * v.unsqueeze(-2)).sum(-1); }
+
+// The axial vector of the skew part of M (..., 3, 3): sin(angle) times the axis for a rotation.
+at::Tensor axial(const at::Tensor& M) {
+  const auto m = [&](int64_t a, int64_t b) { return M.select(-2, a).select(-1, b); };
+  return 0.5 * at::stack({m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1)}, -1);
+}
+
+// Per-vertex rotations (B, F, N_a, 3, 3) of the frame joints from transforms (B, F, J, 3, 4).
+at::Tensor vertex_rotations(const at::Tensor& transforms, const at::Tensor& frame_joints) {
+  return transforms.narrow(-1, 0, 3).index_select(2, frame_joints);
+}
+
+// Detail vectors of the three history frames: d[k] (B, N_a, 3) for frames t-3+k.
+std::vector<at::Tensor> history_details(const at::Tensor& history, const at::Tensor& anchors, const at::Tensor& R) {
+  std::vector<at::Tensor> d;
+  for (int64_t k = 0; k < 3; ++k) d.push_back(to_frame(R.select(1, k), history.select(1, k) - anchors.select(1, k)));
+  return d;
+}
+
+void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g, int64_t J,
+                  const char* who) {
+  TORCH_CHECK(h.dim() == 4 && h.size(1) == 3 && h.size(3) == 3, who, ": history must be (3, N_a, 3) or (B, 3, N_a, 3), got ",
+              h.sizes());
+  const int64_t B = h.size(0), N = h.size(2);
+  TORCH_CHECK(T.dim() == 5 && T.size(0) == B && T.size(1) == 4 && T.size(2) == J && T.size(3) == 3 && T.size(4) == 4,
+              who, ": transforms must be (4, ", J, ", 3, 4) or (", B, ", 4, ", J, ", 3, 4), got ", T.sizes());
+  TORCH_CHECK(S.dim() == 4 && S.size(0) == B && S.size(1) == 4 && S.size(2) == N && S.size(3) == 3, who,
+              ": anchors must be (4, ", N, ", 3) or (", B, ", 4, ", N, ", 3), got ", S.sizes());
+  TORCH_CHECK(g.frame_joints.defined() && g.frame_joints.dim() == 1 && g.frame_joints.size(0) == N, who,
+              ": graph.frame_joints must be (", N, ")");
+  TORCH_CHECK(g.rest_features.defined() && g.rest_features.dim() == 2 && g.rest_features.size(0) == N &&
+                  g.rest_features.size(1) == kApparelRestChannels,
+              who, ": graph.rest_features must be (", N, ", ", kApparelRestChannels, ")");
+  TORCH_CHECK(g.neighbors.defined() && g.neighbors.dim() == 2 && g.neighbors.size(0) == N, who,
+              ": graph.neighbors must be (", N, ", K_max)");
+}
+
+}  // namespace
+
+// === Per-character inputs
+
+at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                                const at::Tensor& body_ids) {
+  const int64_t N = V.size(0), N_a = apparel_ids.size(0);
+  at::Tensor out = at::zeros({N_a}, at::kFloat);
+  if (N_a == 0 || body_ids.size(0) == 0) return out;
+  const at::Tensor Vc = V.to(at::kFloat).contiguous(), E = edges.to(at::kLong).contiguous();
+  const float* v = Vc.data_ptr<float>();
+  const int64_t* e = E.data_ptr<int64_t>();
+  const at::Tensor ids = apparel_ids.to(at::kLong).contiguous(), bids = body_ids.to(at::kLong).contiguous();
+  std::vector<int64_t> position(static_cast<size_t>(N), -1);  // apparel position, or -1 for body
+  for (int64_t i = 0; i < N_a; ++i) position[ids.data_ptr<int64_t>()[i]] = i;
+  const auto length = [&](int64_t a, int64_t b) {
+    const float dx = v[3 * a] - v[3 * b], dy = v[3 * a + 1] - v[3 * b + 1], dz = v[3 * a + 2] - v[3 * b + 2];
+    return std::sqrt(dx * dx + dy * dy + dz * dz);
+  };
+  // Apparel adjacency, components, and seeds where a piece's mesh touches the body.
+  std::vector<std::vector<std::pair<int64_t, float>>> adjacency(static_cast<size_t>(N_a));
+  std::vector<float> dist(static_cast<size_t>(N_a), std::numeric_limits<float>::infinity());
+  std::vector<int64_t> parent(static_cast<size_t>(N_a));
+  for (int64_t i = 0; i < N_a; ++i) parent[i] = i;
+  const std::function<int64_t(int64_t)> root = [&](int64_t i) { return parent[i] == i ? i : parent[i] = root(parent[i]); };
+  for (int64_t k = 0; k < E.size(0); ++k) {
+    const int64_t a = e[2 * k], b = e[2 * k + 1], pa = position[a], pb = position[b];
+    if (pa >= 0 && pb >= 0) {
+      const float l = length(a, b);
+      adjacency[pa].emplace_back(pb, l);
+      adjacency[pb].emplace_back(pa, l);
+      parent[root(pa)] = root(pb);
+    } else if (pa >= 0 || pb >= 0) {
+      const int64_t p = pa >= 0 ? pa : pb;
+      dist[p] = std::min(dist[p], length(a, b));
+    }
+  }
+  // A component that touches no body vertex hangs from its vertex nearest to the body.
+  const std::vector<int32_t> nearest = nearest_listed_vertices(
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>>(v, N, 3),
+      std::vector<int32_t>(bids.data_ptr<int64_t>(), bids.data_ptr<int64_t>() + bids.numel()),
+      std::vector<int32_t>(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + N_a));
+  std::vector<uint8_t> touches(static_cast<size_t>(N_a), 0);
+  std::vector<int64_t> closest(static_cast<size_t>(N_a), -1);
+  for (int64_t i = 0; i < N_a; ++i) {
+    const int64_t r = root(i);
+    if (std::isfinite(dist[i])) touches[r] = 1;
+    const float gap = length(ids.data_ptr<int64_t>()[i], nearest[i]);
+    if (closest[r] < 0 || gap < length(ids.data_ptr<int64_t>()[closest[r]], nearest[closest[r]])) closest[r] = i;
+  }
+  for (int64_t i = 0; i < N_a; ++i) {
+    const int64_t r = root(i);
+    if (!touches[r] && closest[r] == i) dist[i] = length(ids.data_ptr<int64_t>()[i], nearest[i]);
+  }
+  // Dijkstra from the seeds over apparel edges.
+  using Item = std::pair<float, int64_t>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  for (int64_t i = 0; i < N_a; ++i)
+    if (std::isfinite(dist[i])) queue.emplace(dist[i], i);
+  while (!queue.empty()) {
+    const auto [d, i] = queue.top();
+    queue.pop();
+    if (d > dist[i]) continue;
+    for (const auto& [j, l] : adjacency[i]) {
+      if (d + l < dist[j]) queue.emplace(dist[j] = d + l, j);
+    }
+  }
+  float* o = out.data_ptr<float>();
+  for (int64_t i = 0; i < N_a; ++i) o[i] = std::isfinite(dist[i]) ? dist[i] : 0.0f;
+  return out;
+}
+
+ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                           const at::Tensor& body_ids, const at::Tensor& anchor_weights, const at::Tensor& rest_joints,
+                           const at::Tensor& apparel_neighbors) {
+  torch::NoGradGuard no_grad;
+  ApparelGraph g;
+  g.neighbors = apparel_neighbors;
+  const int64_t N_a = apparel_ids.size(0);
+  g.frame_joints = N_a > 0 ? anchor_weights.argmax(1).to(at::kLong).contiguous() : at::zeros({0}, at::kLong);
+  const at::Tensor A_rest = V.to(at::kFloat).index_select(0, apparel_ids.to(at::kLong));
+  const at::Tensor to_joint = A_rest - rest_joints.to(at::kFloat).index_select(0, g.frame_joints);
+  at::Tensor to_body = at::zeros({N_a, 3}, at::kFloat);
+  if (N_a > 0 && body_ids.size(0) > 0) {
+    const at::Tensor Vc = V.to(at::kFloat).contiguous();
+    const at::Tensor ids = apparel_ids.to(at::kLong).contiguous(), bids = body_ids.to(at::kLong).contiguous();
+    const std::vector<int32_t> nearest = nearest_listed_vertices(
+        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>>(Vc.data_ptr<float>(), Vc.size(0), 3),
+        std::vector<int32_t>(bids.data_ptr<int64_t>(), bids.data_ptr<int64_t>() + bids.numel()),
+        std::vector<int32_t>(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + N_a));
+    const at::Tensor nearest_ids = at::tensor(std::vector<int64_t>(nearest.begin(), nearest.end()), at::kLong);
+    to_body = Vc.index_select(0, nearest_ids) - A_rest;
+  }
+  g.rest_features = at::cat({to_joint, to_body, attachment_distances(V, edges, apparel_ids, body_ids).unsqueeze(1)}, 1)
+                        .contiguous();
+  return g;
+}
+
+// === Detail vectors and the zero-network rules
+
+at::Tensor detail_vectors(const at::Tensor& A, const at::Tensor& S, const at::Tensor& transforms,
+                          const at::Tensor& frame_joints) {
+  const at::Tensor R = transforms.narrow(-1, 0, 3).index_select(-3, frame_joints);  // (..., N_a, 3, 3)
+  return to_frame(R, A - S);
+}
+
+at::Tensor detail_rule_step(const at::Tensor& history, const at::Tensor& transforms, const at::Tensor& anchors,
+                            const at::Tensor& frame_joints, double inertia) {
+  const at::Tensor R = vertex_rotations(transforms, frame_joints);
+  const std::vector<at::Tensor> d = history_details(history, anchors, R);
+  const at::Tensor d_t = inertia == 0.0 ? d[2] : d[2] + inertia * (d[2] - d[1]);
+  return anchors.select(1, 3) + from_frame(R.select(1, 3), d_t);
+}
+
+void InertiaFit::add(const at::Tensor& d) {
+  if (d.size(0) < 3) return;
+  const at::Tensor dd = (d.narrow(0, 1, d.size(0) - 1) - d.narrow(0, 0, d.size(0) - 1)).to(at::kDouble);
+  const at::Tensor next = dd.narrow(0, 1, dd.size(0) - 1), last = dd.narrow(0, 0, dd.size(0) - 1);
+  numerator += (next * last).sum().item<double>();
+  denominator += (last * last).sum().item<double>();
+}
+
+double InertiaFit::inertia() const {
+  if (!(denominator > 0)) return 0.0;
+  return std::clamp(numerator / denominator, 0.0, 1.0);
+}
+
+// === Normaliser
+
+RunningNormalizerImpl::RunningNormalizerImpl(int64_t channels, bool centred) : channels_(channels), centred_(centred) {
+  TORCH_CHECK(channels > 0, "RunningNormalizer: channels must be positive");
+  mean = register_buffer("mean", at::zeros({channels}, at::kFloat));
+  scale = register_buffer("scale", at::ones({channels}, at::kFloat));
+  count_ = register_buffer("count", at::zeros({1}, at::kDouble));
+  sum_ = register_buffer("sum", at::zeros({channels}, at::kDouble));
+  sum_squares_ = register_buffer("sum_squares", at::zeros({channels}, at::kDouble));
+  frozen_ = register_buffer("frozen", at::zeros({1}, at::kDouble));
+}
+
+void RunningNormalizerImpl::accumulate(const at::Tensor& x) {
+  TORCH_CHECK(!frozen(), "RunningNormalizer: accumulate after freeze");
+  TORCH_CHECK(x.size(-1) == channels_, "RunningNormalizer: expected ", channels_, " channels, got ", x.sizes());
+  torch::NoGradGuard no_grad;
+  const at::Tensor rows = x.detach().reshape({-1, channels_}).to(at::kDouble);
+  count_ += static_cast<double>(rows.size(0));
+  sum_ += rows.sum(0);
+  sum_squares_ += (rows * rows).sum(0);
+}
+
+void RunningNormalizerImpl::freeze() {
+  torch::NoGradGuard no_grad;
+  const double n = count();
+  if (n > 0) {
+    const at::Tensor m = centred_ ? sum_ / n : at::zeros_like(sum_);
+    const at::Tensor var = (sum_squares_ / n - m * m).clamp_min(0.0);
+    mean.copy_(m);
+    scale.copy_(var.sqrt().clamp_min(kMinScale));
+  }
+  frozen_.fill_(1.0);
+}
+
+bool RunningNormalizerImpl::frozen() const { return frozen_.item<double>() != 0.0; }
+double RunningNormalizerImpl::count() const { return count_.item<double>(); }
+
+at::Tensor RunningNormalizerImpl::normalize(const at::Tensor& x) const { return (x - mean) / scale; }
+at::Tensor RunningNormalizerImpl::denormalize(const at::Tensor& x) const { return x * scale + mean; }
+
+// === The module
+
+ApparelDynamicsNetImpl::ApparelDynamicsNetImpl(ApparelDynamicsOptions options_) : options(std::move(options_)) {
+  TORCH_CHECK(options.form == "local", "ApparelDynamicsNet: form must be \"local\", got \"", options.form, "\"");
+  TORCH_CHECK(options.num_joints > 0, "ApparelDynamicsNet: num_joints must be positive");
+  TORCH_CHECK(!options.edge_widths.empty(), "ApparelDynamicsNet: needs at least one EdgeConv block");
+  TORCH_CHECK(options.inertia >= 0.0 && options.inertia <= 1.0, "ApparelDynamicsNet: inertia must be in [0, 1]");
+  input_normalizer = register_module("input_normalizer", RunningNormalizer(kChannels, /*centred=*/true));
+  target_normalizer = register_module("target_normalizer", RunningNormalizer(3, /*centred=*/false));
+  int64_t channels = kChannels;
+  for (size_t l = 0; l < options.edge_widths.size(); ++l) {
+    EdgeConvOptions block(channels, options.edge_widths[l]);
+    block.negative_slope = options.negative_slope;
+    block.naive = options.naive_edge_conv;
+    blocks_.push_back(register_module("edge_conv" + std::to_string(l), EdgeConv(block)));
+    channels = options.edge_widths[l];
+  }
+  std::vector<int64_t> decoder = {channels};
+  decoder.insert(decoder.end(), options.decoder_widths.begin(), options.decoder_widths.end());
+  decoder.push_back(3);
+  MlpOptions decoder_options(decoder);
+  decoder_options.negative_slope = options.negative_slope;
+  decoder_options.zero_last = true;  // a fresh network is the rule
+  decoder_ = register_module("decoder", Mlp(decoder_options));
+}
+
+at::Tensor ApparelDynamicsNetImpl::features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
+                                            const ApparelGraph& g) const {
+  check_inputs(h, T, S, g, options.num_joints, "ApparelDynamicsNet");
+  return features_from(h, T, S, g, vertex_rotations(T, g.frame_joints));
+}
+
+at::Tensor ApparelDynamicsNetImpl::features_from(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
+                                                 const ApparelGraph& g, const at::Tensor& R) const {
+  const int64_t B = h.size(0), N = h.size(2);
+  const at::Tensor R1 = R.select(1, 2);  // the frame at t-1
+  const std::vector<at::Tensor> d = history_details(h, S, R);
+  // Per joint, then gathered: the rotations over the last two steps and gravity at t.
+  const at::Tensor Rj = T.narrow(-1, 0, 3);  // (B, 4, J, 3, 3)
+  const auto turn = [&](int64_t a, int64_t b) {
+    return axial(at::matmul(Rj.select(1, a).transpose(-1, -2), Rj.select(1, b))).index_select(1, g.frame_joints);
+  };
+  const at::Tensor gravity = -Rj.select(1, 3).select(-2, 1).index_select(1, g.frame_joints);  // R_t^T (0, -1, 0)
+  const at::Tensor Sm = S.narrow(1, 1, 3) - S.narrow(1, 0, 3);  // (B, 3, N_a, 3): S_{k+1} - S_k
+  return at::cat({d[2], d[2] - d[1], d[1] - d[0],
+                  to_frame(R1, Sm.select(1, 2)), to_frame(R1, Sm.select(1, 1)), to_frame(R1, Sm.select(1, 0)),
+                  to_frame(R1, h.select(1, 2) - h.select(1, 1)), turn(2, 3), turn(1, 2), gravity,
+                  g.rest_features.unsqueeze(0).expand({B, N, kApparelRestChannels})},
+                 2);
+}
+
+at::Tensor ApparelDynamicsNetImpl::rule_detail(const at::Tensor& d_last, const at::Tensor& d_before) const {
+  return options.inertia == 0.0 ? d_last : d_last + options.inertia * (d_last - d_before);
+}
+
+at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Tensor& transforms,
+                                        const at::Tensor& anchors, const ApparelGraph& g, at::Tensor* detail) {
+  const bool unbatched = history.dim() == 3;
+  const at::Tensor h = batched(history, 3), T = batched(transforms, 4), S = batched(anchors, 3);
+  check_inputs(h, T, S, g, options.num_joints, "ApparelDynamicsNet");
+  const at::Tensor R = vertex_rotations(T, g.frame_joints);
+  const at::Tensor H = features_from(h, T, S, g, R);
+  at::Tensor x = input_normalizer->normalize(H);
+  for (EdgeConv& block : blocks_) x = block->forward(x, g.neighbors);  // eq. (13)
+  const at::Tensor change = target_normalizer->denormalize(decoder_->forward(x));
+  // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
+  const at::Tensor d_last = H.narrow(2, 0, 3);
+  const at::Tensor d_t = (options.inertia == 0.0 ? d_last : d_last + options.inertia * H.narrow(2, 3, 3)) + change;
+  const at::Tensor A_t = S.select(1, 3) + from_frame(R.select(1, 3), d_t);
+  if (detail) *detail = unbatched ? d_t.squeeze(0) : d_t;
+  return unbatched ? A_t.squeeze(0) : A_t;
+}
+
+at::Tensor ApparelDynamicsNetImpl::rollout(const at::Tensor& initial, const at::Tensor& transforms,
+                                           const at::Tensor& anchors, const ApparelGraph& g) {
+  const bool unbatched = initial.dim() == 3;
+  at::Tensor history = batched(initial, 3);
+  const at::Tensor T = batched(transforms, 4), S = batched(anchors, 3);
+  TORCH_CHECK(T.dim() == 5 && S.dim() == 4 && T.size(1) == S.size(1) && T.size(1) > 3,
+              "ApparelDynamicsNet::rollout: transforms and anchors must cover the 3 initial frames and at least one "
+              "more, got ", transforms.sizes(), " and ", anchors.sizes());
+  const int64_t frames = T.size(1) - 3;
+  std::vector<at::Tensor> out;
+  out.reserve(static_cast<size_t>(frames));
+  for (int64_t t = 0; t < frames; ++t) {
+    const at::Tensor next = step(history, T.narrow(1, t, 4), S.narrow(1, t, 4), g);
+    out.push_back(next);
+    history = at::cat({history.narrow(1, 1, 2), next.unsqueeze(1)}, 1);
+  }
+  const at::Tensor stacked = at::stack(out, 1);
+  return unbatched ? stacked.squeeze(0) : stacked;
+}
+
+void ApparelDynamicsNetImpl::observe(const at::Tensor& history, const at::Tensor& transforms,
+                                     const at::Tensor& anchors, const ApparelGraph& g, const at::Tensor& target) {
+  torch::NoGradGuard no_grad;
+  const at::Tensor h = batched(history, 3), T = batched(transforms, 4), S = batched(anchors, 3);
+  const at::Tensor A = batched(target, 2);
+  input_normalizer->accumulate(features(h, T, S, g));
+  const at::Tensor R = vertex_rotations(T, g.frame_joints);
+  const at::Tensor d_last = to_frame(R.select(1, 2), h.select(1, 2) - S.select(1, 2));
+  const at::Tensor d_before = to_frame(R.select(1, 1), h.select(1, 1) - S.select(1, 1));
+  const at::Tensor d_target = to_frame(R.select(1, 3), A - S.select(1, 3));
+  target_normalizer->accumulate(d_target - rule_detail(d_last, d_before));
+}
+
+void ApparelDynamicsNetImpl::freeze_normalizers() {
+  input_normalizer->freeze();
+  target_normalizer->freeze();
+}
+
+bool ApparelDynamicsNetImpl::normalizers_frozen() const {
+  return input_normalizer->frozen() && target_normalizer->frozen();
+}
+
+}  // namespace amt

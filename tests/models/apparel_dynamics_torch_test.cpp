@@ -1,0 +1,265 @@
+// The local apparel module (models/apparel_dynamics.h): its input channels by value against an
+// independent per-vertex computation, invariance to a rigid motion of the whole animation about the
+// gravity axis (and not to a tilt, since gravity is an input), the fresh network as the hold_offset
+// rule, the zero-network rules on a hand-computed example, the normaliser's statistics and freeze,
+// the attachment distances on a hand-made mesh, and the inertia fit.
+#include "models/apparel_dynamics.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <vector>
+
+namespace amt {
+namespace {
+
+// A rotation (3, 3) about a unit axis.
+at::Tensor rotation(Eigen::Vector3f axis, float angle) {
+  const Eigen::Matrix3f R = Eigen::AngleAxisf(angle, axis.normalized()).toRotationMatrix();
+  at::Tensor out = at::empty({3, 3}, at::kFloat);
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) out[a][b] = R(a, b);
+  return out;
+}
+
+Eigen::Matrix3f matrix(const at::Tensor& R) {
+  Eigen::Matrix3f M;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) M(a, b) = R[a][b].item<float>();
+  return M;
+}
+
+Eigen::Vector3f vec(const at::Tensor& v) { return {v[0].item<float>(), v[1].item<float>(), v[2].item<float>()}; }
+
+// (F, J, 3, 4) transforms with random proper rotations and positions.
+at::Tensor random_transforms(int64_t F, int64_t J) {
+  at::Tensor T = at::zeros({F, J, 3, 4}, at::kFloat);
+  for (int64_t f = 0; f < F; ++f) {
+    for (int64_t j = 0; j < J; ++j) {
+      const at::Tensor axis = at::randn({3});
+      T[f][j].narrow(1, 0, 3).copy_(rotation(vec(axis), 0.3f * at::randn({1}).item<float>() + 0.5f));
+      T[f][j].select(1, 3).copy_(at::randn({3}));
+    }
+  }
+  return T;
+}
+
+// A small apparel graph: a strip of N vertices (a chain), frame joints cycling over J.
+ApparelGraph chain_graph(int64_t N, int64_t J) {
+  std::vector<int64_t> e;
+  for (int64_t i = 0; i + 1 < N; ++i) e.insert(e.end(), {i, i + 1});
+  ApparelGraph g;
+  g.neighbors = neighbor_table(N, at::tensor(e, at::kLong).view({-1, 2}));
+  g.frame_joints = at::arange(N, at::kLong).remainder(J);
+  g.rest_features = at::randn({N, kApparelRestChannels});
+  return g;
+}
+
+// A network whose every layer matters (random last layer) and whose normalisers hold statistics.
+ApparelDynamicsNet lively_network(int64_t J, const ApparelGraph& g) {
+  ApparelDynamicsOptions o;
+  o.num_joints = J;
+  o.edge_widths = {16, 16};
+  o.decoder_widths = {16};
+  o.inertia = 0.5;
+  ApparelDynamicsNet net(o);
+  const int64_t N = g.frame_joints.size(0);
+  for (int k = 0; k < 4; ++k)
+    net->observe(at::randn({3, N, 3}), random_transforms(4, J), at::randn({4, N, 3}), g, at::randn({N, 3}));
+  net->freeze_normalizers();
+  torch::NoGradGuard no_grad;
+  for (auto& p : net->parameters()) p.copy_(0.3 * at::randn(p.sizes()));
+  return net;
+}
+
+TEST(ApparelDynamics, FeaturesMatchAnIndependentPerVertexComputation) {
+  torch::manual_seed(3);
+  const int64_t N = 5, J = 3;
+  const ApparelGraph g = chain_graph(N, J);
+  const at::Tensor T = random_transforms(4, J), A = at::randn({3, N, 3}), S = at::randn({4, N, 3});
+  ApparelDynamicsNet net(ApparelDynamicsOptions{"local", J});
+  const at::Tensor H = net->features(A.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0), g).squeeze(0);
+  ASSERT_EQ(H.size(1), ApparelDynamicsNetImpl::kChannels);
+  for (int64_t i = 0; i < N; ++i) {
+    const int64_t j = g.frame_joints[i].item<int64_t>();
+    Eigen::Matrix3f R[4];
+    for (int k = 0; k < 4; ++k) R[k] = matrix(T[k][j].narrow(1, 0, 3));
+    const auto a = [&](int k) { return vec(A[k][i]); };
+    const auto s = [&](int k) { return vec(S[k][i]); };
+    Eigen::Vector3f d[3];
+    for (int k = 0; k < 3; ++k) d[k] = R[k].transpose() * (a(k) - s(k));
+    const auto skew = [](const Eigen::Matrix3f& M) -> Eigen::Vector3f {
+      return Eigen::Vector3f(M(2, 1) - M(1, 2), M(0, 2) - M(2, 0), M(1, 0) - M(0, 1)) / 2;
+    };
+    const std::vector<Eigen::Vector3f> expected = {d[2],
+                                                   d[2] - d[1],
+                                                   d[1] - d[0],
+                                                   R[2].transpose() * (s(3) - s(2)),
+                                                   R[2].transpose() * (s(2) - s(1)),
+                                                   R[2].transpose() * (s(1) - s(0)),
+                                                   R[2].transpose() * (a(2) - a(1)),
+                                                   skew(R[2].transpose() * R[3]),
+                                                   skew(R[1].transpose() * R[2]),
+                                                   R[3].transpose() * Eigen::Vector3f(0, -1, 0)};
+    for (size_t c = 0; c < expected.size(); ++c)
+      for (int x = 0; x < 3; ++x)
+        EXPECT_NEAR(H[i][3 * c + x].item<float>(), expected[c](x), 1e-5) << "vertex " << i << " group " << c;
+    for (int64_t x = 0; x < kApparelRestChannels; ++x)
+      EXPECT_EQ(H[i][30 + x].item<float>(), g.rest_features[i][x].item<float>());
+  }
+}
+
+TEST(ApparelDynamics, RigidMotionAboutGravityLeavesDetailVectorsUnchanged) {
+  torch::manual_seed(4);
+  const int64_t N = 6, J = 3;
+  const ApparelGraph g = chain_graph(N, J);
+  ApparelDynamicsNet net = lively_network(J, g);
+  const at::Tensor T = random_transforms(4, J), A = at::randn({3, N, 3}), S = at::randn({4, N, 3});
+  // The same animation moved rigidly: x -> G x + c for every point, so R -> G R and t -> G t + c.
+  const auto moved = [&](const at::Tensor& G, const at::Tensor& c) {
+    at::Tensor T2 = T.clone();
+    T2.narrow(3, 0, 3).copy_(at::matmul(G, T.narrow(3, 0, 3)));
+    T2.select(3, 3).copy_(at::matmul(T.select(3, 3), G.t()) + c);
+    const at::Tensor A2 = at::matmul(A, G.t()) + c, S2 = at::matmul(S, G.t()) + c;
+    at::Tensor detail;
+    const at::Tensor next = net->step(A2, T2, S2, g, &detail);
+    return std::make_pair(next, detail);
+  };
+  torch::NoGradGuard no_grad;
+  const at::Tensor I = at::eye(3), zero = at::zeros({3});
+  const auto [next, detail] = moved(I, zero);
+  EXPECT_GT(detail.abs().max().item<float>(), 1e-2);  // the network does something
+  const at::Tensor yaw = rotation({0, 1, 0}, 1.1f), shift = at::tensor({0.4f, -0.2f, 2.0f});
+  const auto [next_yaw, detail_yaw] = moved(yaw, shift);
+  EXPECT_LT((detail_yaw - detail).abs().max().item<float>(), 1e-5);
+  EXPECT_LT((next_yaw - (at::matmul(next, yaw.t()) + shift)).abs().max().item<float>(), 1e-5);
+  // Gravity is an input: a tilt of the whole animation is a different situation.
+  const auto [next_tilt, detail_tilt] = moved(rotation({1, 0, 0}, 0.8f), zero);
+  EXPECT_GT((detail_tilt - detail).abs().max().item<float>(), 1e-4);
+}
+
+TEST(ApparelDynamics, FreshNetworkIsTheHoldOffsetRule) {
+  torch::manual_seed(5);
+  const int64_t N = 7, J = 2;
+  const ApparelGraph g = chain_graph(N, J);
+  ApparelDynamicsNet net(ApparelDynamicsOptions{"local", J});
+  for (int k = 0; k < 3; ++k)
+    net->observe(at::randn({3, N, 3}), random_transforms(4, J), at::randn({4, N, 3}), g, at::randn({N, 3}));
+  net->freeze_normalizers();
+  const at::Tensor T = random_transforms(4, J), A = at::randn({3, N, 3}), S = at::randn({4, N, 3});
+  torch::NoGradGuard no_grad;
+  const at::Tensor next = net->step(A, T, S, g);
+  const at::Tensor rule =
+      detail_rule_step(A.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0), g.frame_joints, 0.0).squeeze(0);
+  EXPECT_EQ((next - rule).abs().max().item<float>(), 0.0f);
+  // By hand: A_t = S_t + R_t R_{t-1}^T (A_{t-1} - S_{t-1}).
+  for (int64_t i = 0; i < N; ++i) {
+    const int64_t j = g.frame_joints[i].item<int64_t>();
+    const Eigen::Vector3f expected = vec(S[3][i]) + matrix(T[3][j].narrow(1, 0, 3)) *
+                                                        matrix(T[2][j].narrow(1, 0, 3)).transpose() *
+                                                        (vec(A[2][i]) - vec(S[2][i]));
+    for (int x = 0; x < 3; ++x) EXPECT_NEAR(next[i][x].item<float>(), expected(x), 1e-5);
+  }
+}
+
+TEST(ApparelDynamics, ZeroNetworkRulesOnAHandComputedExample) {
+  // One joint turning 90 degrees about y per frame, anchors at the origin: the detail vector of a
+  // vertex that moved from (1, 0, 0) at frame 0 to (0, 0, -1.5) at frame 1 (= R_1 (1.5, 0, 0)).
+  at::Tensor T = at::zeros({1, 4, 1, 3, 4});
+  for (int k = 0; k < 4; ++k) T[0][k][0].narrow(1, 0, 3).copy_(rotation({0, 1, 0}, 1.5707963f * k));
+  const at::Tensor S = at::zeros({1, 4, 1, 3});
+  const at::Tensor A = at::tensor({0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 0.f, -1.5f}).view({1, 3, 1, 3});
+  // Frame t-3: d = (0, 0, 0). Frame t-2: R_1 = 90 deg, A = (1, 0, 0) -> d = R_1^T (1,0,0) = (0, 0, 1).
+  // Frame t-1: R_2 = 180 deg, A = (0, 0, -1.5) -> d = R_2^T (0, 0, -1.5) = (0, 0, 1.5).
+  const at::Tensor frames = at::zeros({1}, at::kLong);
+  const at::Tensor d = detail_vectors(A.squeeze(0), S.squeeze(0).narrow(0, 0, 3), T.squeeze(0).narrow(0, 0, 3), frames);
+  EXPECT_NEAR(d[1][0][2].item<float>(), 1.0f, 1e-6);
+  EXPECT_NEAR(d[2][0][2].item<float>(), 1.5f, 1e-6);
+  // hold_offset: d_t = (0, 0, 1.5), R_3 = 270 deg about y: R_3 (0, 0, 1.5) = (-1.5, 0, 0).
+  const at::Tensor hold = detail_rule_step(A, T, S, frames, 0.0);
+  EXPECT_NEAR(hold[0][0][0].item<float>(), -1.5f, 1e-5);
+  EXPECT_NEAR(hold[0][0][2].item<float>(), 0.0f, 1e-5);
+  // inertial with 0.5: d_t = 1.5 + 0.5 (1.5 - 1) = 1.75 -> (-1.75, 0, 0).
+  const at::Tensor inertial = detail_rule_step(A, T, S, frames, 0.5);
+  EXPECT_NEAR(inertial[0][0][0].item<float>(), -1.75f, 1e-5);
+}
+
+TEST(ApparelDynamics, InertiaFitIsTheLeastSquaresFactor) {
+  // d_t along x: 0, 1, 1.5, 1.75 (each step half the last): lambda = 0.5 exactly.
+  const at::Tensor d = at::tensor({0.f, 1.f, 1.5f, 1.75f}).view({4, 1, 1}) * at::tensor({1.f, 0.f, 0.f}).view({1, 1, 3});
+  InertiaFit fit;
+  fit.add(d);
+  EXPECT_NEAR(fit.inertia(), 0.5, 1e-9);
+  InertiaFit none;
+  EXPECT_EQ(none.inertia(), 0.0);
+}
+
+TEST(ApparelDynamics, NormalizerStatisticsAndFreeze) {
+  RunningNormalizer centred(2, true), uncentred(2, false);
+  const at::Tensor x = at::tensor({1.f, 10.f, 3.f, 10.f, 5.f, 10.f}).view({3, 2});
+  // Before freeze the normaliser is the identity.
+  EXPECT_TRUE(centred->normalize(x).equal(x));
+  centred->accumulate(x);
+  uncentred->accumulate(x);
+  EXPECT_EQ(centred->count(), 3.0);
+  centred->freeze();
+  uncentred->freeze();
+  EXPECT_NEAR(centred->mean[0].item<float>(), 3.0f, 1e-6);
+  EXPECT_NEAR(centred->scale[0].item<float>(), std::sqrt(8.0f / 3.0f), 1e-6);
+  EXPECT_NEAR(centred->scale[1].item<float>(), RunningNormalizerImpl::kMinScale, 1e-9);  // constant channel
+  EXPECT_EQ(uncentred->mean[0].item<float>(), 0.0f);
+  EXPECT_NEAR(uncentred->scale[0].item<float>(), std::sqrt(35.0f / 3.0f), 1e-5);  // rms
+  EXPECT_LT((centred->denormalize(centred->normalize(x)) - x).abs().max().item<float>(), 1e-5);
+  EXPECT_THROW(centred->accumulate(x), c10::Error);
+}
+
+TEST(ApparelDynamics, ObservedTargetIsTheChangeOfTheDetailVector) {
+  // One vertex, one joint: the target normaliser's rms after one observation is |d_t - d_{t-1}| per
+  // channel, with each d in its own frame (an off-by-one frame would change it).
+  ApparelGraph g = chain_graph(1, 1);
+  ApparelDynamicsNet net(ApparelDynamicsOptions{"local", 1});
+  at::Tensor T = at::zeros({4, 1, 3, 4});
+  for (int k = 0; k < 4; ++k) T[k][0].narrow(1, 0, 3).copy_(rotation({0, 1, 0}, 1.5707963f * k));
+  const at::Tensor S = at::zeros({4, 1, 3});
+  const at::Tensor A = at::tensor({0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, -1.5f}).view({3, 1, 3});
+  // d_{t-1} = (0, 0, 1.5); the target A_t = (-2, 0, 0) at R_3 = 270 deg: d_t = R_3^T (-2, 0, 0) = (0, 0, 2).
+  net->observe(A, T, S, g, at::tensor({-2.f, 0.f, 0.f}).view({1, 3}));
+  net->freeze_normalizers();
+  EXPECT_NEAR(net->target_normalizer->scale[2].item<float>(), 0.5f, 1e-5);
+  EXPECT_NEAR(net->target_normalizer->scale[0].item<float>(), RunningNormalizerImpl::kMinScale, 1e-6);
+}
+
+TEST(ApparelDynamics, AttachmentDistancesAlongTheApparel) {
+  // Body vertex 0 at the origin; a chain 1-2-3 along x hanging from it (edges 0-1, 1-2, 2-3, unit
+  // steps), and a separate piece 4-5 whose vertex 4 is 0.5 from the body.
+  const at::Tensor V = at::tensor({0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 2.f, 0.f, 0.f, 3.f, 0.f, 0.f,
+                                   0.f, 0.5f, 0.f, 0.f, 2.5f, 0.f}).view({6, 3});
+  const at::Tensor E = at::tensor({0, 1, 1, 2, 2, 3, 4, 5}, at::kLong).view({4, 2});
+  const at::Tensor d = attachment_distances(V, E, at::tensor({1, 2, 3, 4, 5}, at::kLong), at::tensor({0}, at::kLong));
+  const std::vector<float> expected = {1.f, 2.f, 3.f, 0.5f, 2.5f};
+  for (int i = 0; i < 5; ++i) EXPECT_NEAR(d[i].item<float>(), expected[i], 1e-6) << i;
+}
+
+TEST(ApparelDynamics, RolloutFeedsPredictionsBack) {
+  torch::manual_seed(6);
+  const int64_t N = 4, J = 2, frames = 3;
+  const ApparelGraph g = chain_graph(N, J);
+  ApparelDynamicsNet net = lively_network(J, g);
+  const at::Tensor T = random_transforms(3 + frames, J), S = at::randn({3 + frames, N, 3});
+  const at::Tensor initial = at::randn({3, N, 3});
+  torch::NoGradGuard no_grad;
+  const at::Tensor out = net->rollout(initial, T, S, g);
+  ASSERT_EQ(out.sizes(), (std::vector<int64_t>{frames, N, 3}));
+  at::Tensor history = initial;
+  for (int64_t t = 0; t < frames; ++t) {
+    const at::Tensor next = net->step(history, T.narrow(0, t, 4), S.narrow(0, t, 4), g);
+    EXPECT_LT((next - out[t]).abs().max().item<float>(), 1e-6);
+    history = at::cat({history.narrow(0, 1, 2), next.unsqueeze(0)}, 0);
+  }
+}
+
+}  // namespace
+}  // namespace amt
