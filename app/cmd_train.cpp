@@ -43,7 +43,12 @@ void run(const TrainCommand& command) {
   if (!command.segmenter_json.empty())
     options_from_json(command.segmenter_json, "--segmenter-options", networks.segmenter);
   if (!command.skinning_json.empty()) options_from_json(command.skinning_json, "--skinning-options", networks.skinning);
-  if (!command.apparel_json.empty()) options_from_json(command.apparel_json, "--apparel-options", networks.apparel);
+  if (!command.apparel_json.empty()) {
+    if (networks.apparel_form == "local")
+      options_from_json(command.apparel_json, "--apparel-options", networks.apparel_dynamics);
+    else
+      options_from_json(command.apparel_json, "--apparel-options", networks.apparel);
+  }
   if (!command.refiner_json.empty()) options_from_json(command.refiner_json, "--refiner-options", networks.refiner);
   if (!command.variant.empty()) {
     AMT_CHECK(command.module == "skinning", "--variant: only the skinning predictor has variants, not '",
@@ -65,7 +70,14 @@ void run(const TrainCommand& command) {
   }
   TrainOptions end_to_end = options;
   if (end_to_end.skinning_checkpoint.empty()) end_to_end.skinning_checkpoint = (out / "skinning.ckpt").string();
-  report(train_apparel_refiner(command.data, end_to_end));
+  if (networks.apparel_form == "global") {
+    report(train_apparel_refiner(command.data, end_to_end));
+    return;
+  }
+  // The local apparel module trains on its own, then the refiner on its rollouts.
+  report(train_module(ModuleKind::kApparel, command.data, options));
+  end_to_end.apparel_checkpoint = (out / "apparel.ckpt").string();
+  report(train_module(ModuleKind::kRefiner, command.data, end_to_end));
 }
 
 }  // namespace
@@ -76,8 +88,9 @@ void add_train_command(CLI::App& app) {
   TrainOptions& o = command->options;
   train
       ->add_option("MODULE", command->module,
-                   "segmenter, skinning, apparel, refiner, apparel_refiner (the two end to end), or all "
-                   "(segmenter, skinning, apparel_refiner)")
+                   "segmenter, skinning, apparel, refiner, apparel_refiner (the global apparel form and the refiner "
+                   "end to end), or all (segmenter, skinning, then apparel and refiner, or apparel_refiner for the "
+                   "global form)")
       ->required()
       ->check(CLI::IsMember({"segmenter", "skinning", "apparel", "refiner", "apparel_refiner", "all"}));
   train->add_option("--data", command->data, "Dataset shards: *.h5 files or folders of them")->required();
@@ -111,6 +124,28 @@ void add_train_command(CLI::App& app) {
   train->add_option("--skinning-options", command->skinning_json, "Skinning predictor options (JSON object)");
   train->add_option("--apparel-options", command->apparel_json, "Apparel network options (JSON object)");
   train->add_option("--refiner-options", command->refiner_json, "Refiner network options (JSON object)");
+  train
+      ->add_option("--apparel-form", o.networks.apparel_form,
+                   "Apparel module of a fresh run: local (detail vectors in the anchor joint's frame, normalised, "
+                   "around the hold-offset rule; the default) or global (the earlier form, for the ablations)")
+      ->check(CLI::IsMember({"local", "global"}))
+      ->capture_default_str();
+  train
+      ->add_option("--unroll", o.unroll,
+                   "Local apparel: curriculum of rollout lengths, LENGTH:FRACTION of --lr-decay-steps, ...")
+      ->capture_default_str();
+  train->add_option("--noise", o.history_noise, "Local apparel: std (m) of the noise on the last history state")
+      ->capture_default_str();
+  train->add_option("--noise-gamma", o.noise_gamma, "Local apparel: share of the noise the target does not follow")
+      ->capture_default_str();
+  train
+      ->add_option("--rest-start", o.rest_start_fraction,
+                   "Local apparel: share of windows rolled out from the rest pose at their clip's start")
+      ->capture_default_str();
+  train
+      ->add_option("--normalizer-samples", o.normalizer_samples,
+                   "Local apparel: samples whose one-step windows set the normalisers of a fresh run")
+      ->capture_default_str();
   train->add_option("--skinning-frames", o.skinning_frames, "Frames per skinning sample")->capture_default_str();
   train
       ->add_option("--validate-every", o.validate_every,

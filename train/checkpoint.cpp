@@ -247,6 +247,8 @@ template SkinningPredictor load_frozen_network<SkinningPredictor, SkinningPredic
     const std::string& path, ModuleKind kind, CheckpointInfo& info);
 template ApparelDisplacementNet load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(
     const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template ApparelDynamicsNet load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(
+    const std::string& path, ModuleKind kind, CheckpointInfo& info);
 template JointRefiner load_frozen_network<JointRefiner, JointRefinerOptions>(
     const std::string& path, ModuleKind kind, CheckpointInfo& info);
 

@@ -88,8 +88,8 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
 /// tensors (load_checkpoint) and freezes it: eval mode, no parameter requires grad. `info` receives the
 /// checkpoint's info. Errors name the file and the key, as those of the functions it calls.
 /// Defined for the four networks of models/: (ApparelSegmenter, ApparelSegmenterOptions),
-/// (SkinningPredictor, SkinningPredictorOptions), (ApparelDisplacementNet, ApparelDisplacementOptions) and
-/// (JointRefiner, JointRefinerOptions).
+/// (SkinningPredictor, SkinningPredictorOptions), (ApparelDisplacementNet, ApparelDisplacementOptions),
+/// (ApparelDynamicsNet, ApparelDynamicsOptions) and (JointRefiner, JointRefinerOptions).
 template <typename Net, typename Options>
 Net load_frozen_network(const std::string& path, ModuleKind kind, CheckpointInfo& info);
 

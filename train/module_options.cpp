@@ -53,6 +53,17 @@ void visit(ApparelDisplacementOptions& o, Visitor&& v) {
 }
 
 template <typename Visitor>
+void visit(ApparelDynamicsOptions& o, Visitor&& v) {
+  v("form", o.form);
+  v("num_joints", o.num_joints);
+  v("edge_widths", o.edge_widths);
+  v("decoder_widths", o.decoder_widths);
+  v("negative_slope", o.negative_slope);
+  v("inertia", o.inertia);
+  v("naive_edge_conv", o.naive_edge_conv);
+}
+
+template <typename Visitor>
 void visit(JointRefinerOptions& o, Visitor&& v) {
   v("hidden_widths", o.hidden_widths);
   v("output_scale", o.output_scale);
@@ -83,6 +94,9 @@ Json to_value(bool x) {
 Json to_value(const std::vector<int64_t>& x) {
   return x;
 }
+Json to_value(const std::string& x) {
+  return x;
+}
 Json to_value(SkinningVariant x) {
   return variant_name(x);
 }
@@ -107,6 +121,10 @@ void from_value(const Json& j, const std::string& where, std::vector<int64_t>& o
     values.push_back(x.get<int64_t>());
   }
   out = std::move(values);
+}
+void from_value(const Json& j, const std::string& where, std::string& out) {
+  AMT_CHECK(j.is_string(), where, ": expected a string, found ", j.dump());
+  out = j.get<std::string>();
 }
 void from_value(const Json& j, const std::string& where, SkinningVariant& out) {
   for (SkinningVariant v :
@@ -154,8 +172,16 @@ std::string options_to_json(const SkinningPredictorOptions& options) {
 std::string options_to_json(const ApparelDisplacementOptions& options) {
   return write_json(options);
 }
+std::string options_to_json(const ApparelDynamicsOptions& options) {
+  return write_json(options);
+}
 std::string options_to_json(const JointRefinerOptions& options) {
   return write_json(options);
+}
+
+bool is_local_apparel_options(const std::string& text) {
+  const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+  return j.is_object() && j.contains("form");
 }
 
 const char* skinning_variant_name(SkinningVariant variant) {
@@ -191,6 +217,11 @@ void options_from_json(const std::string& text, const std::string& source, Skinn
 }
 void options_from_json(const std::string& text, const std::string& source, ApparelDisplacementOptions& options) {
   read_json(text, source, options);
+}
+void options_from_json(const std::string& text, const std::string& source, ApparelDynamicsOptions& options) {
+  read_json(text, source, options);
+  AMT_CHECK(options.form == "local", source, ": options.form: expected \"local\" (the apparel dynamics module), found \"",
+            options.form, "\"");
 }
 void options_from_json(const std::string& text, const std::string& source, JointRefinerOptions& options) {
   read_json(text, source, options);

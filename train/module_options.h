@@ -4,6 +4,7 @@
 #include <string>
 
 #include "models/apparel_displacement.h"
+#include "models/apparel_dynamics.h"
 #include "models/apparel_segmenter.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_predictor.h"
@@ -16,7 +17,13 @@ namespace amt {
 std::string options_to_json(const ApparelSegmenterOptions& options);
 std::string options_to_json(const SkinningPredictorOptions& options);
 std::string options_to_json(const ApparelDisplacementOptions& options);
+std::string options_to_json(const ApparelDynamicsOptions& options);
 std::string options_to_json(const JointRefinerOptions& options);
+
+/// Whether an apparel checkpoint's options JSON is of the local form (ApparelDynamicsNet, whose
+/// options always carry `form`) rather than the earlier global one (ApparelDisplacementNet, whose
+/// options have no such field).
+bool is_local_apparel_options(const std::string& text);
 
 // === JSON text -> options
 
@@ -26,6 +33,7 @@ std::string options_to_json(const JointRefinerOptions& options);
 void options_from_json(const std::string& text, const std::string& source, ApparelSegmenterOptions& options);
 void options_from_json(const std::string& text, const std::string& source, SkinningPredictorOptions& options);
 void options_from_json(const std::string& text, const std::string& source, ApparelDisplacementOptions& options);
+void options_from_json(const std::string& text, const std::string& source, ApparelDynamicsOptions& options);
 void options_from_json(const std::string& text, const std::string& source, JointRefinerOptions& options);
 
 // === Skinning variants (paper Table 4)

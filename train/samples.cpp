@@ -228,6 +228,8 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
     t->apparel_anchor_weights =
         apparel_anchor_weights(t->V, t->apparel_ids, t->body_ids, t->body_weights.index_select(0, t->body_ids));
+    t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
+                                     t->apparel_neighbors);
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.
       std::vector<int32_t> body_index(N, -1);
@@ -278,6 +280,11 @@ TrainingSample SampleSource::get(int64_t k) {
       sample.character = load_character(clip.character, *readers);
       sample.clip = clip.name;
       sample.first_frame = static_cast<int>(r - item_offsets_[item]);
+      // A second, independent draw decides whether the window starts at the clip's first frame.
+      const uint64_t start_draw = splitmix64(hash ^ 0x5bd1e995u);
+      if (options_.clip_start_fraction > 0 &&
+          static_cast<double>(start_draw >> 11) * 0x1.0p-53 < options_.clip_start_fraction)
+        sample.first_frame = 0;
       DatasetReader& reader = readers->at(clip.shard, shards_);
       const int F = options_.frames, J = static_cast<int>(joint_names_.size());
       sample.joint_transforms = transforms_tensor(reader.read_joint_transforms(clip.name, sample.first_frame, F), F, J);

@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "models/apparel_dynamics.h"
 #include "train/checkpoint.h"
 
 namespace amt {
@@ -59,6 +60,9 @@ struct CharacterTensors {
   /// apparel_anchor_weights (N_a, J) float: the ground-truth weights of each apparel vertex's nearest
   /// body vertex (apparel_anchor_weights), which skin the apparel network's anchor S^(t).
   at::Tensor apparel_anchor_weights;
+  /// The apparel dynamics module's per-character inputs (frame joints, rest channels; its neighbour
+  /// table is apparel_neighbors).
+  ApparelGraph apparel_graph;
   /// G_body (N_b, J) float geodesic distances (metres) over the body mesh, the faces whose three
   /// vertices are body vertices (geodesic_distances); computed only for the skinning module, else undefined.
   at::Tensor G_body;
@@ -91,6 +95,9 @@ struct SampleSourceOptions {
   std::string split = "train";
   /// Seed of the sample order.
   uint64_t seed = 1;
+  /// Share of windows that start at their clip's first frame instead of a uniformly drawn one (the
+  /// apparel module's rollouts from the rest pose); which windows do is a function of (seed, k) too.
+  double clip_start_fraction = 0.0;
   /// Compute CharacterTensors::G_body for every module, not only for skinning (the refiner needs it
   /// when B̂ comes from a trained skinning predictor).
   bool geodesics = false;

@@ -1,6 +1,7 @@
 #include "train/trainer.h"
 
 #include <ATen/ATen.h>
+#include <ATen/CPUGeneratorImpl.h>
 #include <torch/optim/adamw.h>
 #include <torch/utils.h>
 #include <unistd.h>
@@ -23,6 +24,7 @@
 #include "data_tools/error.h"
 #include "data_tools/lbs_torch.h"
 #include "train/module_options.h"
+#include "train/pipeline.h"
 #include "train/samples.h"
 
 namespace amt {
@@ -49,6 +51,11 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["window"] = o.window;
   j["skinning_frames"] = o.skinning_frames;
   j["segmenter_pos_weight"] = o.segmenter_pos_weight;
+  j["unroll"] = o.unroll;
+  j["history_noise"] = o.history_noise;
+  j["noise_gamma"] = o.noise_gamma;
+  j["rest_start_fraction"] = o.rest_start_fraction;
+  j["normalizer_samples"] = o.normalizer_samples;
   j["weights"] = {{"vertex", o.weights.vertex},
                   {"edge", o.weights.edge},
                   {"smoothness", o.weights.smoothness},
@@ -93,6 +100,14 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   get(j, "window", o.window, "");
   get(j, "skinning_frames", o.skinning_frames, "");
   get(j, "segmenter_pos_weight", o.segmenter_pos_weight, "");
+  if (const auto unroll = j.find("unroll"); unroll != j.end()) {
+    AMT_CHECK(unroll->is_string(), path, ": config.unroll: expected a string, found ", unroll->dump());
+    o.unroll = unroll->get<std::string>();
+  }
+  if (j.contains("history_noise")) get(j, "history_noise", o.history_noise, "");
+  if (j.contains("noise_gamma")) get(j, "noise_gamma", o.noise_gamma, "");
+  if (j.contains("rest_start_fraction")) get(j, "rest_start_fraction", o.rest_start_fraction, "");
+  if (j.contains("normalizer_samples")) get(j, "normalizer_samples", o.normalizer_samples, "");
   const auto weights = j.find("weights");
   AMT_CHECK(weights != j.end() && weights->is_object(), path, ": config.weights: expected an object");
   get(*weights, "vertex", o.weights.vertex, "weights.");
@@ -124,13 +139,15 @@ struct Part {
   std::string checkpoint;
 };
 
-// What a run trains: its networks, the stem of its log, and the loss of one sample as
-// {total, unweighted terms...} in the order of `terms`.
+// What a run trains: its networks, the stem of its log, the loss of one sample at a step as
+// {total, unweighted terms...} in the order of `terms` (validating: the fixed validation form, no
+// noise), and what a fresh run does before its first step (the local apparel module's normalisers).
 struct Task {
   std::vector<Part> parts;
   std::string log_stem;
   std::vector<std::string> terms;
-  std::function<std::vector<at::Tensor>(const TrainingSample&)> loss;
+  std::function<std::vector<at::Tensor>(const TrainingSample&, int64_t step, bool validating)> loss;
+  std::function<void(SampleSource&)> prepare;
 };
 
 // A trained module loaded for inference (the refiner's inputs): kind checked, skeleton checked.
@@ -183,9 +200,9 @@ at::Tensor skinned_body(SkinningPredictor& skinning, const CharacterTensors& c, 
 // S (T, N_a, 3): the rest apparel skinned to `motion` with the weights of the nearest body vertices
 // (ApparelDisplacementOptions::skinned_anchor), from the same body weights as skinned_body; undefined
 // for a network without the anchor. No gradient.
-at::Tensor apparel_anchors(const ApparelDisplacementNet& apparel, SkinningPredictor& skinning,
-                           const CharacterTensors& c, const at::Tensor& motion) {
-  if (!apparel->options.skinned_anchor) return {};
+at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const CharacterTensors& c,
+                           const at::Tensor& motion) {
+  if (!anchored) return {};
   torch::NoGradGuard frozen;
   const at::Tensor A_rest = c.V.index_select(0, c.apparel_ids);
   at::Tensor W = c.apparel_anchor_weights;
@@ -194,6 +211,89 @@ at::Tensor apparel_anchors(const ApparelDisplacementNet& apparel, SkinningPredic
     W = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, W_b);
   }
   return linear_blend_skinning(A_rest, W, motion, c.joints);
+}
+
+// The local apparel module's loss on one sample at `step`: the curriculum's unroll length u, a rollout
+// of u frames from the window's 3 ground-truth states (the last one noised, the first target corrected:
+// add_history_noise), or, for a window at its clip's first frame, from the rest pose through the
+// motion's lead-in as a user's clip starts (the lead-in without gradient). Terms: the squared error of the predicted detail vectors in
+// units of the target normaliser's scale (so that a one-step run starts near 1) and the edge-length loss
+// (eq. 15). Validation uses the longest unroll and no noise.
+std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const TrainingSample& s, int64_t step,
+                                           bool validating, const TrainOptions& o) {
+  const CharacterTensors& c = *s.character;
+  const int64_t u = validating ? longest_unroll(o.unroll) : unroll_at(o.unroll, step, o.lr_decay_steps);
+  const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (F, N_a, 3)
+  const at::Tensor A_rest = c.V.index_select(0, c.apparel_ids);
+  SkinningPredictor ground_truth_weights{nullptr};
+  at::Tensor initial, motion, targets;
+  if (o.rest_start_fraction > 0 && s.first_frame == 0) {
+    // The lead-in runs without gradient (the pushforward trick: the clip then starts from the module's
+    // own settled state, at a third of the cost of differentiating through it).
+    const at::Tensor lead_in = motion_lead_in(s.joint_transforms[0], c.joints, kDefaultLeadInFrames);
+    const int64_t L = lead_in.size(0);
+    const at::Tensor before = at::cat({rest_pose_transforms(c.joints, 3), lead_in}, 0);  // (3 + L, J, 3, 4)
+    {
+      torch::NoGradGuard no_grad;
+      const at::Tensor settled = net->rollout(A_rest.unsqueeze(0).expand({3, -1, -1}), before,
+                                              apparel_anchors(true, ground_truth_weights, c, before), c.apparel_graph);
+      initial = settled.narrow(0, L - 3, 3);
+    }
+    motion = at::cat({before.narrow(0, L, 3), s.joint_transforms.narrow(0, 0, u)}, 0);
+    targets = A.narrow(0, 0, u);
+  } else {
+    motion = s.joint_transforms.narrow(0, 0, 3 + u);
+    initial = A.narrow(0, 0, 3);
+    targets = A.narrow(0, 3, u);
+    if (!validating && o.history_noise > 0) {
+      // Seeded by the run and the sample, so that a resumed run draws the same noise.
+      uint64_t seed = o.seed * 0x9E3779B97F4A7C15ull ^ static_cast<uint64_t>(step) * 0xBF58476D1CE4E5B9ull ^
+                      static_cast<uint64_t>(s.first_frame);
+      for (char ch : s.clip) seed = (seed ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+      at::Generator generator = at::detail::createCPUGenerator(seed);
+      const at::Tensor noise = o.history_noise * at::randn({A.size(1), 3}, generator, at::kFloat);
+      auto [noisy, first] = add_history_noise(initial, targets[0], noise, o.noise_gamma);
+      initial = noisy;
+      targets = at::cat({first.unsqueeze(0), targets.narrow(0, 1, u - 1)}, 0);
+    }
+  }
+  const at::Tensor S = apparel_anchors(true, ground_truth_weights, c, motion);
+  const at::Tensor predicted = net->rollout(initial, motion, S, c.apparel_graph);
+  const at::Tensor scale2 = net->target_normalizer->scale.pow(2).sum();
+  const at::Tensor detail = (predicted - targets).pow(2).sum(-1).mean() / scale2;
+  const at::Tensor edge = edge_length_loss(predicted, A_rest, c.apparel_edges);
+  return {detail + o.weights.edge * edge, detail, edge};
+}
+
+// The normalisers of a fresh local apparel module: every one-step window (3 ground-truth states and
+// the next) of the first o.normalizer_samples training samples, then frozen.
+void prepare_normalizers(ApparelDynamicsNet& net, SampleSource& source, const TrainOptions& o) {
+  if (net->normalizers_frozen()) return;
+  torch::NoGradGuard no_grad;
+  SkinningPredictor ground_truth_weights{nullptr};
+  int64_t windows = 0;
+  for (int k = 0; k < o.normalizer_samples; ++k) {
+    const TrainingSample s = source.get(k);
+    const CharacterTensors& c = *s.character;
+    const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
+    const at::Tensor S = apparel_anchors(true, ground_truth_weights, c, s.joint_transforms);
+    for (int64_t t = 3; t < A.size(0); ++t, ++windows) {
+      net->observe(A.narrow(0, t - 3, 3), s.joint_transforms.narrow(0, t - 3, 4), S.narrow(0, t - 3, 4),
+                   c.apparel_graph, A[t]);
+    }
+  }
+  net->freeze_normalizers();
+  if (o.progress) {
+    std::fprintf(stderr, "[apparel] normalisers from %d samples (%lld one-step windows); target scale %s m\n",
+                 o.normalizer_samples, static_cast<long long>(windows),
+                 [&] {
+                   std::ostringstream text;
+                   const at::Tensor sc = net->target_normalizer->scale;
+                   text << sc[0].item<float>() << " " << sc[1].item<float>() << " " << sc[2].item<float>();
+                   return text.str();
+                 }()
+                     .c_str());
+  }
 }
 
 // `resumed` holds the info of each part's resumed checkpoint in the order the parts are made
@@ -211,13 +311,17 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
                                                                         joint_names);
   }
   if (end_to_end) {
+    AMT_CHECK(info(0) ? !is_local_apparel_options(info(0)->options_json) : o.networks.apparel_form == "global",
+              "apparel_refiner: the end-to-end run trains the global apparel form (--apparel-form global); the local "
+              "apparel module trains on its own (amt train apparel), then the refiner on it (amt train refiner "
+              "--apparel CKPT)");
     ApparelDisplacementNet apparel(joint_network_options(info(0), path(0), o.networks.apparel, J));
     JointRefiner refiner(network_options(info(1), path(1), o.networks.refiner));
     task.parts.push_back(make_part(ModuleKind::kApparel, "apparel", apparel, options_to_json(apparel->options)));
     task.parts.push_back(make_part(ModuleKind::kRefiner, "refiner", refiner, options_to_json(refiner->options)));
     task.log_stem = kEndToEndMode;
     task.terms = {"apparel_vertex", "apparel_edge", "refiner_vertex", "refiner_edge", "refiner_regularizer"};
-    task.loss = [apparel, refiner, skinning, w](const TrainingSample& s) mutable {
+    task.loss = [apparel, refiner, skinning, w](const TrainingSample& s, int64_t, bool) mutable {
       const CharacterTensors& c = *s.character;
       const int64_t T = s.vertices.size(0);
       const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
@@ -228,7 +332,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
         const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (T, N_a, 3)
         A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
-                                 apparel_anchors(apparel, skinning, c, motion));
+                                 apparel_anchors(apparel->options.skinned_anchor, skinning, c, motion));
         la = apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
       }
       const at::Tensor tiled = tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
@@ -244,7 +348,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       task.parts.push_back(make_part(kind, "segmenter", net, options_to_json(net->options)));
       task.terms = {"bce"};
       const double pos_weight = o.segmenter_pos_weight;
-      task.loss = [net, pos_weight](const TrainingSample& s) mutable {
+      task.loss = [net, pos_weight](const TrainingSample& s, int64_t, bool) mutable {
         const at::Tensor bce = apparel_bce_loss(net->forward(s.character->V), s.character->apparel_mask, pos_weight);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
       };
@@ -255,7 +359,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       task.parts.push_back(
           make_part(kind, skinning_file_stem(net->options.variant), net, options_to_json(net->options)));
       task.terms = {"vertex", "edge", "smoothness", "weights"};
-      task.loss = [net, w](const TrainingSample& s) mutable {
+      task.loss = [net, w](const TrainingSample& s, int64_t, bool) mutable {
         const CharacterTensors& c = *s.character;
         const at::Tensor V_b = c.V.index_select(0, c.body_ids);
         const SkinningOutput out = net->forward_detailed(V_b, c.joints, c.G_body);
@@ -267,10 +371,21 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       break;
     }
     case ModuleKind::kApparel: {
+      const bool local = info(0) ? is_local_apparel_options(info(0)->options_json) : o.networks.apparel_form == "local";
+      if (local) {
+        ApparelDynamicsNet net(joint_network_options(info(0), path(0), o.networks.apparel_dynamics, J));
+        task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
+        task.terms = {"detail", "edge"};
+        task.loss = [net, o](const TrainingSample& s, int64_t step, bool validating) mutable {
+          return local_apparel_loss(net, s, step, validating, o);
+        };
+        task.prepare = [net, o](SampleSource& source) mutable { prepare_normalizers(net, source, o); };
+        break;
+      }
       ApparelDisplacementNet net(joint_network_options(info(0), path(0), o.networks.apparel, J));
       task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
       task.terms = {"vertex", "edge"};
-      task.loss = [net, w](const TrainingSample& s) mutable {
+      task.loss = [net, w](const TrainingSample& s, int64_t, bool) mutable {
         const CharacterTensors& c = *s.character;
         const int64_t T = s.vertices.size(0);
         const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (T, N_a, 3)
@@ -278,7 +393,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         SkinningPredictor ground_truth_weights{nullptr};
         // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
         const at::Tensor A_hat = net->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
-                                              apparel_anchors(net, ground_truth_weights, c, motion));
+                                              apparel_anchors(net->options.skinned_anchor, ground_truth_weights, c, motion));
         const LossTerms l =
             apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
         return std::vector<at::Tensor>{l.total, l.vertex, l.edge};
@@ -288,12 +403,19 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
     case ModuleKind::kRefiner: {
       AMT_CHECK(!o.apparel_checkpoint.empty(), "--apparel: the refiner trains on the apparel module's output: give ",
                 "its checkpoint (amt train apparel writes <out>/apparel.ckpt)");
-      ApparelDisplacementNet apparel = load_frozen<ApparelDisplacementNet, ApparelDisplacementOptions>(
-          o.apparel_checkpoint, ModuleKind::kApparel, joint_names);
+      ApparelDisplacementNet apparel{nullptr};
+      ApparelDynamicsNet dynamics{nullptr};
+      if (is_local_apparel_options(read_checkpoint_info(o.apparel_checkpoint, ModuleKind::kApparel).options_json)) {
+        dynamics = load_frozen<ApparelDynamicsNet, ApparelDynamicsOptions>(o.apparel_checkpoint, ModuleKind::kApparel,
+                                                                           joint_names);
+      } else {
+        apparel = load_frozen<ApparelDisplacementNet, ApparelDisplacementOptions>(o.apparel_checkpoint,
+                                                                                  ModuleKind::kApparel, joint_names);
+      }
       JointRefiner net(network_options(info(0), path(0), o.networks.refiner));
       task.parts.push_back(make_part(kind, "refiner", net, options_to_json(net->options)));
       task.terms = {"vertex", "edge", "regularizer"};
-      task.loss = [net, apparel, skinning, w](const TrainingSample& s) mutable {
+      task.loss = [net, apparel, dynamics, skinning, w](const TrainingSample& s, int64_t, bool) mutable {
         const CharacterTensors& c = *s.character;
         const int64_t T = s.vertices.size(0);
         const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
@@ -301,8 +423,14 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         if (c.apparel_ids.size(0) > 0) {
           torch::NoGradGuard frozen;
           const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
-          A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
-                                   apparel_anchors(apparel, skinning, c, motion));
+          if (!dynamics.is_empty()) {
+            // The local module measures detail vectors from the history's frames on: anchors of all T frames.
+            A_hat = dynamics->rollout(A.narrow(0, 0, 3), s.joint_transforms,
+                                      apparel_anchors(true, skinning, c, s.joint_transforms), c.apparel_graph);
+          } else {
+            A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
+                                     apparel_anchors(apparel->options.skinned_anchor, skinning, c, motion));
+          }
         }
         const at::Tensor tiled =
             tile_apparel_body(A_hat, skinned_body(skinning, c, motion), c.apparel_mask);  // eq. (16)
@@ -354,7 +482,7 @@ double validation_loss(Task& task, const std::vector<TrainingSample>& samples) {
   torch::NoGradGuard no_grad;
   for (Part& part : task.parts) part.module->eval();
   double sum = 0.0;
-  for (const TrainingSample& sample : samples) sum += task.loss(sample)[0].item<double>();
+  for (const TrainingSample& sample : samples) sum += task.loss(sample, 0, /*validating=*/true)[0].item<double>();
   for (Part& part : task.parts) part.module->train();
   return sum / static_cast<double>(samples.size());
 }
@@ -418,8 +546,25 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   AMT_CHECK(o.weights.skinning_weights >= 0, "--weight-loss: expected >= 0, found ", o.weights.skinning_weights);
   AMT_CHECK(o.steps >= 1, "--steps: expected >= 1, found ", o.steps);
 
+  // The local apparel module: a fresh run's form from the options, a resumed one's from its checkpoint.
+  const bool local_apparel = !end_to_end && kind == ModuleKind::kApparel &&
+                             (resumed.empty() ? o.networks.apparel_form == "local"
+                                              : is_local_apparel_options(resumed[0].options_json));
+  if (local_apparel) {
+    AMT_CHECK(o.window >= 3 + longest_unroll(o.unroll), "--window: expected >= ", 3 + longest_unroll(o.unroll),
+              " (3 history states and the longest unroll of --unroll ", o.unroll, "), found ", o.window);
+    AMT_CHECK(o.history_noise >= 0 && o.noise_gamma >= 0 && o.noise_gamma <= 1, "--noise: expected a std >= 0 and ",
+              "gamma in [0, 1], found ", o.history_noise, " and ", o.noise_gamma);
+    AMT_CHECK(o.rest_start_fraction >= 0 && o.rest_start_fraction <= 1, "--rest-start: expected a share in [0, 1], ",
+              "found ", o.rest_start_fraction);
+    AMT_CHECK(o.normalizer_samples >= 1, "--normalizer-samples: expected >= 1, found ", o.normalizer_samples);
+  }
+  AMT_CHECK(o.networks.apparel_form == "local" || o.networks.apparel_form == "global",
+            "--apparel-form: expected local or global, found '", o.networks.apparel_form, "'");
+
   SampleSourceOptions sampling;
   sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;
+  sampling.clip_start_fraction = local_apparel ? o.rest_start_fraction : 0.0;
   sampling.frames = kind == ModuleKind::kSkinning && !end_to_end ? o.skinning_frames : o.window;
   sampling.seed = o.seed;
   sampling.geodesics = sampling.kind == ModuleKind::kRefiner && !o.skinning_checkpoint.empty();
@@ -471,6 +616,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   info.joint_names = joint_names;
   info.data_fingerprint = source.fingerprint();
 
+  if (first_step == 0 && task.prepare) task.prepare(source);
   const std::vector<TrainingSample> validation = validation_set(shards, sampling, o, name);
   const bool tty = isatty(fileno(stderr));
   SampleLoader loader(source, first_step * o.batch, (o.steps - first_step) * o.batch, o.loader_threads, o.prefetch);
@@ -489,7 +635,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     std::vector<double> values(task.terms.size() + 1, 0.0);
     for (int b = 0; b < o.batch; ++b) {
       const TrainingSample sample = loader.next();
-      const std::vector<at::Tensor> terms = task.loss(sample);
+      const std::vector<at::Tensor> terms = task.loss(sample, step, /*validating=*/false);
       (terms[0] / static_cast<double>(o.batch)).backward();
       for (size_t i = 0; i < terms.size(); ++i) values[i] += terms[i].item<double>() / o.batch;
     }
@@ -546,6 +692,62 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
 }
 
 }  // namespace
+
+// === Local apparel training pieces
+
+namespace {
+
+std::vector<std::pair<int, double>> parse_unroll(const std::string& schedule) {
+  std::vector<std::pair<int, double>> phases;
+  std::stringstream text(schedule);
+  std::string item;
+  while (std::getline(text, item, ',')) {
+    const size_t colon = item.find(':');
+    int length = 0;
+    double until = 0;
+    bool ok = colon != std::string::npos;
+    if (ok) {
+      try {
+        size_t used = 0;
+        length = std::stoi(item.substr(0, colon), &used);
+        ok = used == colon;
+        const std::string rest = item.substr(colon + 1);
+        until = std::stod(rest, &used);
+        ok = ok && used == rest.size();
+      } catch (const std::exception&) {
+        ok = false;
+      }
+    }
+    AMT_CHECK(ok && length >= 1 && until > 0 && (phases.empty() || until > phases.back().second), "--unroll: expected ",
+              "LENGTH:FRACTION pairs with lengths >= 1 and rising fractions, e.g. 1:0.3,5:0.6,20:1, found '", schedule,
+              "'");
+    phases.emplace_back(length, until);
+  }
+  AMT_CHECK(!phases.empty(), "--unroll: expected at least one LENGTH:FRACTION pair, found '", schedule, "'");
+  return phases;
+}
+
+}  // namespace
+
+int unroll_at(const std::string& schedule, int64_t step, int64_t horizon) {
+  const auto phases = parse_unroll(schedule);
+  for (const auto& [length, until] : phases)
+    if (static_cast<double>(step) < until * static_cast<double>(horizon)) return length;
+  return phases.back().first;
+}
+
+int longest_unroll(const std::string& schedule) {
+  int longest = 0;
+  for (const auto& phase : parse_unroll(schedule)) longest = std::max(longest, phase.first);
+  return longest;
+}
+
+std::pair<at::Tensor, at::Tensor> add_history_noise(const at::Tensor& history, const at::Tensor& target,
+                                                    const at::Tensor& noise, double gamma) {
+  at::Tensor noisy = history.clone();
+  noisy.select(0, 2).add_(noise);
+  return {noisy, target + (1.0 - gamma) * noise};
+}
 
 TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, const TrainOptions& options) {
   return run_training(kind, /*end_to_end=*/false, data, options);

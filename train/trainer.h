@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "models/apparel_displacement.h"
+#include "models/apparel_dynamics.h"
 #include "models/apparel_segmenter.h"
 #include "models/joint_refiner.h"
 #include "models/losses.h"
@@ -25,7 +26,11 @@ namespace amt {
 struct NetworkOptions {
   ApparelSegmenterOptions segmenter;
   SkinningPredictorOptions skinning;
+  /// The apparel module of a fresh run: "local" (ApparelDynamicsNet with apparel_dynamics, the
+  /// default) or "global" (ApparelDisplacementNet with apparel, the earlier form).
+  std::string apparel_form = "local";
   ApparelDisplacementOptions apparel;
+  ApparelDynamicsOptions apparel_dynamics;
   JointRefinerOptions refiner;
 };
 
@@ -51,6 +56,23 @@ struct TrainOptions {
   int batch = 1;
   /// (run) T, frames per apparel / refiner window: 3 ground-truth history states, then T - 3 targets.
   int window = 10;
+  /// (run) The local apparel module's curriculum of unrolled steps: "L1:F1,L2:F2,...", L_k steps
+  /// rolled out on the module's own predictions (differentiably) until the step F_k * lr_decay_steps,
+  /// the last length thereafter. The window must hold 3 + the longest L (the default fits the
+  /// default 10-frame window; the shipped model's recipe rolls out 20 frames in 23-frame windows).
+  std::string unroll = "1:0.3,4:0.6,7:1";
+  /// (run) Local apparel module: standard deviation (metres) of the Gaussian noise added to the last
+  /// ground-truth history state, and the share gamma of it the first target does not follow
+  /// (add_history_noise; MeshGraphNets' training noise against exposure bias). 0: no noise.
+  double history_noise = 0.001;
+  double noise_gamma = 0.1;
+  /// (run) Local apparel module: share of windows that start at their clip's first frame from the
+  /// rest pose, as `amt animate` and the rollout protocol start (rest apparel history, the motion
+  /// blended in over kDefaultLeadInFrames), the loss on the clip's frames.
+  double rest_start_fraction = 0.2;
+  /// (run) Local apparel module: training samples whose one-step windows set the normalisers before
+  /// the first step (a fresh run only; a resumed run has them in its checkpoint).
+  int normalizer_samples = 200;
   /// (run) Frames per skinning sample (the LBS result is compared on each).
   int skinning_frames = 4;
   /// (run) Loss weights (section 5.2).
@@ -89,6 +111,22 @@ struct TrainOptions {
   /// Networks of a fresh run.
   NetworkOptions networks;
 };
+
+// === Local apparel training pieces
+
+/// The curriculum's unroll length at 0-based `step` (TrainOptions::unroll over `horizon` steps).
+/// Throws amt::Error "--unroll: ..." for a malformed schedule.
+int unroll_at(const std::string& schedule, int64_t step, int64_t horizon);
+
+/// The longest unroll of a schedule.
+int longest_unroll(const std::string& schedule);
+
+/// Training noise against exposure bias: `noise` (N_a, 3) is added to the last state of `history`
+/// (3, N_a, 3), and `target` (N_a, 3), the next state, moves by (1 - gamma) * noise, so that the
+/// network learns to undo the velocity the noise fakes while keeping most of its position error
+/// (gamma = 1: undo all of it). Returns {history, target} (new tensors).
+std::pair<at::Tensor, at::Tensor> add_history_noise(const at::Tensor& history, const at::Tensor& target,
+                                                    const at::Tensor& noise, double gamma);
 
 // === Training
 

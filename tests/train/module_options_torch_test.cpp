@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "data_tools/error.h"
+#include "tests/test_support.h"
 
 namespace amt {
 namespace {
@@ -30,6 +31,24 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(a2.edge_widths, a.edge_widths);
   EXPECT_EQ(a2.velocity_scale, 3.5);
   EXPECT_FALSE(a2.root_relative);
+
+  ApparelDynamicsOptions l;
+  l.edge_widths = {5, 6};
+  l.inertia = 0.25;
+  ApparelDynamicsOptions l2;
+  options_from_json(options_to_json(l), "x.ckpt", l2);
+  EXPECT_EQ(options_to_json(l2), options_to_json(l));
+  EXPECT_EQ(l2.inertia, 0.25);
+  // The two apparel forms are told apart by `form`, which only the local one writes.
+  EXPECT_TRUE(is_local_apparel_options(options_to_json(l)));
+  EXPECT_FALSE(is_local_apparel_options(options_to_json(a)));
+  EXPECT_FALSE(is_local_apparel_options("not json"));
+  EXPECT_EQ(test::error_of([&] { options_from_json(R"({"form":"global"})", "x.ckpt", l2); }),
+            "x.ckpt: options.form: expected \"local\" (the apparel dynamics module), found \"global\"");
+  // A global-form checkpoint's options are not misread as the local form.
+  EXPECT_NE(test::error_of([&] { options_from_json(options_to_json(a), "old.ckpt", l2); })
+                .find("old.ckpt: options."),
+            std::string::npos);
 
   JointRefinerOptions r;
   r.hidden_widths = {9};

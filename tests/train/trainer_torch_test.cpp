@@ -99,6 +99,11 @@ TrainOptions tiny_options(const std::string& out) {
   o.networks.apparel.edge_widths = {16, 16};
   o.networks.apparel.decoder_widths = {16};
   o.networks.refiner.hidden_widths = {16};
+  // The local apparel module's curriculum within the default 10-frame window, a short warm-up.
+  o.networks.apparel_dynamics.edge_widths = {16, 16};
+  o.networks.apparel_dynamics.decoder_widths = {16};
+  o.unroll = "1:0.4,2:0.7,7:1";
+  o.normalizer_samples = 4;
   return o;
 }
 
@@ -217,12 +222,11 @@ TEST(Trainer, ShortRunsLowerTheLossOfEveryModule) {
   TrainOptions o = tiny_options("lowers");
   o.learning_rate = 3e-3;
   o.steps = 40;
+  o.unroll = "1:1";  // one loss scale over the run (longer unrolls have larger errors)
   for (ModuleKind kind : {ModuleKind::kSegmenter, ModuleKind::kSkinning, ModuleKind::kApparel}) {
     const TrainResult r = train_module(kind, {micro_dataset()}, o);
-    // The apparel module starts as its skinned anchor (zero-initialised decoder), already close to
-    // the micro dataset's apparel, so there is less to gain than for the other modules.
-    const double factor = kind == ModuleKind::kApparel ? 0.95 : 0.7;
-    EXPECT_LT(mean(r.losses, 30, 10), factor * mean(r.losses, 0, 10)) << module_kind_name(kind);
+    if (kind == ModuleKind::kApparel) continue;  // LocalApparel.ShortRunLowersTheValidationLoss
+    EXPECT_LT(mean(r.losses, 30, 10), 0.7 * mean(r.losses, 0, 10)) << module_kind_name(kind);
     std::printf("%s: %.2f ms/step, %.1f samples/s, loss %.4g -> %.4g\n", module_kind_name(kind),
                 1e3 * r.seconds_per_step, r.samples_per_second, mean(r.losses, 0, 10), mean(r.losses, 30, 10));
   }
@@ -233,6 +237,73 @@ TEST(Trainer, ShortRunsLowerTheLossOfEveryModule) {
   EXPECT_LT(mean(r.losses, 30, 10), mean(r.losses, 0, 10));
   std::printf("refiner: %.2f ms/step, %.1f samples/s, loss %.4g -> %.4g\n", 1e3 * r.seconds_per_step,
               r.samples_per_second, mean(r.losses, 0, 10), mean(r.losses, 30, 10));
+}
+
+TEST(LocalApparel, UnrollScheduleAndNoiseTargetCorrection) {
+  EXPECT_EQ(unroll_at("1:0.3,5:0.6,20:1", 0, 100), 1);
+  EXPECT_EQ(unroll_at("1:0.3,5:0.6,20:1", 29, 100), 1);
+  EXPECT_EQ(unroll_at("1:0.3,5:0.6,20:1", 30, 100), 5);
+  EXPECT_EQ(unroll_at("1:0.3,5:0.6,20:1", 99, 100), 20);
+  EXPECT_EQ(unroll_at("1:0.3,5:0.6,20:1", 500, 100), 20);  // past the horizon: the last length
+  EXPECT_EQ(longest_unroll("1:0.3,25:0.6,20:1"), 25);
+  for (const char* bad : {"", "5", "0:1", "1:0.5,2:0.4", "a:1", "1:x"})
+    EXPECT_NE(error_of([&] { unroll_at(bad, 0, 10); }).find("--unroll: expected"), std::string::npos) << bad;
+  // Noise n on the last of three states; the target follows (1 - gamma) n: by hand with gamma 0.1.
+  const at::Tensor history = at::arange(18, at::kFloat).view({3, 2, 3});
+  const at::Tensor target = at::full({2, 3}, 100.0f), noise = at::tensor({1.f, -2.f, 0.f, 0.5f, 0.f, 4.f}).view({2, 3});
+  const auto [noisy, moved] = add_history_noise(history, target, noise, 0.1);
+  EXPECT_TRUE(noisy.narrow(0, 0, 2).equal(history.narrow(0, 0, 2)));
+  EXPECT_TRUE(noisy[2].equal(history[2] + noise));
+  EXPECT_NEAR(moved[0][0].item<float>(), 100.9f, 1e-5);
+  EXPECT_NEAR(moved[0][1].item<float>(), 98.2f, 1e-5);
+  EXPECT_NEAR(moved[1][2].item<float>(), 103.6f, 1e-5);
+  EXPECT_EQ(history[2][0][0].item<float>(), 12.0f);  // the input is not changed
+}
+
+TEST(LocalApparel, ShortRunLowersTheValidationLoss) {
+  // The micro dataset's apparel trails its skinned position by two frames: a rule the module can
+  // learn. The fixed validation windows (one-step, from ground truth) after the first step and after
+  // 60 show it; per-sample training losses vary too much with the window's speed to show it in 60.
+  test::use_one_thread();
+  TrainOptions o = tiny_options("local_lowers");
+  o.steps = 60;
+  o.learning_rate = 1e-3;
+  o.unroll = "1:1";
+  o.history_noise = 0;
+  o.rest_start_fraction = 0;
+  o.validate_every = 1;
+  o.validation_samples = 8;
+  const TrainResult r = train_module(ModuleKind::kApparel, {split_dataset()}, o);
+  ASSERT_EQ(r.validation_losses.size(), 60u);
+  EXPECT_LT(r.validation_losses.back(), 0.8 * r.validation_losses.front());
+  std::printf("local apparel: %.2f ms/step, validation %.4g -> %.4g\n", 1e3 * r.seconds_per_step,
+              r.validation_losses.front(), r.validation_losses.back());
+}
+
+TEST(LocalApparel, NormalisersAreSetBeforeTheFirstStepAndKeptByTheCheckpoint) {
+  test::use_one_thread();
+  TrainOptions o = tiny_options("local_normalisers");
+  o.steps = 2;
+  const TrainResult r = train_module(ModuleKind::kApparel, {micro_dataset()}, o);
+  CheckpointInfo info;
+  ApparelDynamicsNet net = load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(r.checkpoint,
+                                                                                        ModuleKind::kApparel, info);
+  EXPECT_TRUE(is_local_apparel_options(info.options_json));
+  EXPECT_TRUE(net->normalizers_frozen());
+  EXPECT_GT(net->input_normalizer->count(), 0.0);
+  // Real statistics: the gravity channel's y (the frame's -R_1y) is near -1 for a mostly upright joint.
+  EXPECT_LT(net->input_normalizer->mean[28].item<float>(), -0.5f);
+  EXPECT_GT(net->target_normalizer->scale.min().item<float>(), 0.0f);
+  // A checkpoint of the global form is told apart and refused by the local loader, naming the field.
+  TrainOptions global = tiny_options("global_form");
+  global.steps = 1;
+  global.networks.apparel_form = "global";
+  const TrainResult g = train_module(ModuleKind::kApparel, {micro_dataset()}, global);
+  EXPECT_FALSE(is_local_apparel_options(read_checkpoint_info(g.checkpoint, ModuleKind::kApparel).options_json));
+  const std::string error = error_of([&] {
+    load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(g.checkpoint, ModuleKind::kApparel, info);
+  });
+  EXPECT_NE(error.find("unknown field"), std::string::npos) << error;
 }
 
 TEST(Trainer, CosineScheduleAndWeightLossChangeTheRun) {
@@ -271,6 +342,7 @@ TEST(Trainer, CosineScheduleAndWeightLossChangeTheRun) {
 TEST(EndToEnd, LowersTheLossResumesBitExactlyAndWritesBothModules) {
   test::use_one_thread();
   TrainOptions straight = tiny_options("e2e_straight");
+  straight.networks.apparel_form = "global";  // the end-to-end run trains the global form
   straight.steps = 30;
   straight.learning_rate = 3e-3;
   straight.validate_every = 10;
