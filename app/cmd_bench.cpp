@@ -142,10 +142,11 @@ ModelBundle bench_bundle(const std::string& dir, std::string& what) {
   b.joint_names = canonical_joint_names();
   b.segmenter = ApparelSegmenter(ApparelSegmenterOptions{});
   b.skinning = SkinningPredictor(SkinningPredictorOptions{});
-  b.apparel = ApparelDisplacementNet(ApparelDisplacementOptions{});
+  b.apparel_dynamics = ApparelDynamicsNet(ApparelDynamicsOptions{});
+  b.apparel_dynamics->freeze_normalizers();  // identity statistics: the cost is the same
   b.refiner = JointRefiner(JointRefinerOptions{});
   for (torch::nn::Module* m : std::initializer_list<torch::nn::Module*>{b.segmenter.get(), b.skinning.get(),
-                                                                         b.apparel.get(), b.refiner.get()}) {
+                                                                         b.apparel_dynamics.get(), b.refiner.get()}) {
     m->eval();
     for (auto& p : m->parameters()) p.set_requires_grad(false);
   }

@@ -32,6 +32,8 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"G_body", &BoundCharacter::G_body},
           {"body_weights", &BoundCharacter::body_weights},
           {"apparel_anchor_weights", &BoundCharacter::apparel_anchor_weights},
+          {"apparel_frame_joints", &BoundCharacter::apparel_frame_joints},
+          {"apparel_rest_features", &BoundCharacter::apparel_rest_features},
           {"vertex_weights", &BoundCharacter::vertex_weights}};
 }
 
@@ -72,7 +74,7 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
     // A bundle assembled in code: hash its parameters.
     for (const torch::nn::Module* m : {static_cast<const torch::nn::Module*>(bundle.segmenter.get()),
                                        static_cast<const torch::nn::Module*>(bundle.skinning.get()),
-                                       static_cast<const torch::nn::Module*>(bundle.apparel.get()),
+                                       bundle.apparel_module(),
                                        static_cast<const torch::nn::Module*>(bundle.refiner.get())}) {
       if (!m) continue;
       for (const at::Tensor& p : m->parameters()) {
@@ -126,7 +128,8 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     if (archive.try_read(name, t)) loaded.*member = t;
   }
   for (const char* required : {"V", "faces", "joints", "edges", "apparel_mask", "refiner_prob", "apparel_ids",
-                               "body_ids", "apparel_neighbors", "body_weights", "apparel_anchor_weights"}) {
+                               "body_ids", "apparel_neighbors", "body_weights", "apparel_anchor_weights",
+                               "apparel_frame_joints", "apparel_rest_features"}) {
     at::Tensor t;
     if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
   }

@@ -14,6 +14,7 @@
 #include "data_tools/lbs_torch.h"
 #include "data_tools/mesh.h"
 #include "models/edge_conv.h"
+#include "train/module_options.h"
 
 namespace amt {
 namespace {
@@ -83,6 +84,14 @@ at::Tensor submesh_geodesics(const MatrixX3f& V, const MatrixX3i& F, const Matri
   return from_matrix(geodesic_distances(V_s, F_s, joints));
 }
 
+// The local apparel module's per-character inputs from the bound parts and anchor weights.
+void set_apparel_graph(BoundCharacter& c) {
+  const ApparelGraph g =
+      apparel_graph(c.V, c.edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights, c.joints, c.apparel_neighbors);
+  c.apparel_frame_joints = g.frame_joints;
+  c.apparel_rest_features = g.rest_features;
+}
+
 }  // namespace
 
 // === Model bundle
@@ -97,6 +106,11 @@ SkinningPredictor ModelBundle::skinning_for(SkinningVariant variant) const {
   AMT_CHECK(!net.is_empty(), (dir.empty() ? std::string("model") : dir), "/", file, ": no such checkpoint (the ",
             variant_name(variant), " skinning variant was not loaded)");
   return net;
+}
+
+const torch::nn::Module* ModelBundle::apparel_module() const {
+  return local_apparel() ? static_cast<const torch::nn::Module*>(apparel_dynamics.get())
+                         : static_cast<const torch::nn::Module*>(apparel.get());
 }
 
 ModelBundle load_model_bundle(const std::string& dir) {
@@ -142,10 +156,18 @@ ModelBundle load_model_bundle(const std::string& dir) {
   bundle.infos.push_back(info);
 
   path = require(kApparelCheckpoint, ModuleKind::kApparel);
-  bundle.apparel =
-      load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
+  if (is_local_apparel_options(read_checkpoint_info(path, ModuleKind::kApparel).options_json)) {
+    bundle.apparel_dynamics =
+        load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(path, ModuleKind::kApparel, info);
+    check_joints_option(path, bundle.apparel_dynamics->options.num_joints, J);
+    AMT_CHECK(bundle.apparel_dynamics->normalizers_frozen(), path, ": input_normalizer: expected frozen statistics ",
+              "(a checkpoint written after the normaliser warm-up), found none");
+  } else {
+    bundle.apparel =
+        load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
+    check_joints_option(path, bundle.apparel->options.num_joints, J);
+  }
   check_skeleton(path, info);
-  check_joints_option(path, bundle.apparel->options.num_joints, J);
   bundle.infos.push_back(info);
 
   path = require(kRefinerCheckpoint, ModuleKind::kRefiner);
@@ -223,6 +245,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
     c.vertex_weights = options.weights.to(at::kFloat).contiguous();
     c.body_weights = c.vertex_weights.index_select(0, c.body_ids);
     c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
+    set_apparel_graph(c);
     return c;
   }
   SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
@@ -233,6 +256,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
     c.body_weights = at::zeros({0, J}, at::kFloat);
   }
   c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
+  set_apparel_graph(c);
   if (options.all_vertex_weights) {
     // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body
     // only" and "body + apparel" skin the body identically (Table 3).
@@ -245,6 +269,14 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
 }
 
 // === Starting a motion
+
+at::Tensor rest_pose_transforms(const at::Tensor& rest_joints, int64_t frames) {
+  const int64_t J = rest_joints.size(0);
+  at::Tensor T = at::zeros({J, 3, 4}, at::kFloat);
+  T.narrow(2, 0, 3).copy_(at::eye(3, at::kFloat).expand({J, 3, 3}));
+  T.select(2, 3).copy_(rest_joints.to(at::kFloat));
+  return T.unsqueeze(0).expand({frames, J, 3, 4}).contiguous();
+}
 
 at::Tensor rest_apparel_history(const BoundCharacter& character) {
   return character.V.index_select(0, character.apparel_ids).unsqueeze(0).expand({3, -1, -1}).contiguous();
@@ -290,8 +322,8 @@ const char* pipeline_stages_name(PipelineStages stages) {
 }
 
 PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
-                                 PipelineStages stages)
-    : bundle_(bundle), character_(character), stages_(stages) {
+                                 PipelineStages stages, ApparelSource source, double inertia)
+    : bundle_(bundle), character_(character), stages_(stages), source_(source), inertia_(inertia) {
   if (stages_ == PipelineStages::kBodyOnly) {
     AMT_CHECK(character_.vertex_weights.defined(), "pipeline: body only needs weights of every vertex (bind with ",
               "BindOptions::all_vertex_weights or BindOptions::weights)");
@@ -300,7 +332,9 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
   } else {
     lbs_rest_ = character_.V.index_select(0, character_.body_ids);
     lbs_weights_ = character_.body_weights;
-    if (bundle_.apparel->options.skinned_anchor && character_.num_apparel() > 0) {
+    const bool anchored =
+        source_ != ApparelSource::kNetwork || bundle_.local_apparel() || bundle_.apparel->options.skinned_anchor;
+    if (anchored && character_.num_apparel() > 0) {
       // One LBS call skins the body (B̂) and the apparel's anchor S^(t): rows N_b.. are S.
       lbs_rest_ = at::cat({lbs_rest_, character_.V.index_select(0, character_.apparel_ids)}, 0);
       lbs_weights_ = at::cat({lbs_weights_, character_.apparel_anchor_weights}, 0);
@@ -313,14 +347,28 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
   reset(history);
 }
 
-void PipelineStepper::reset(const at::Tensor& history) {
-  const int64_t N_a = character_.num_apparel();
+void PipelineStepper::reset(const at::Tensor& history, const at::Tensor& history_transforms) {
+  const int64_t N_a = character_.num_apparel(), J = character_.joints.size(0);
   AMT_CHECK(history.defined() && history.dim() == 3 && history.size(0) == 3 && history.size(1) == N_a &&
                 history.size(2) == 3,
             "pipeline: apparel history: expected (3, ", N_a, ", 3), found ",
             (history.defined() ? history.sizes() : at::IntArrayRef{}));
   history_ = history.to(at::kFloat).contiguous();
   frames_ = 0;
+  if (source_ == ApparelSource::kNetwork && !bundle_.local_apparel()) return;
+  c10::InferenceMode inference;
+  if (history_transforms.defined()) {
+    AMT_CHECK(history_transforms.dim() == 4 && history_transforms.size(0) == 3 && history_transforms.size(1) == J &&
+                  history_transforms.size(2) == 3 && history_transforms.size(3) == 4,
+              "pipeline: history transforms: expected (3, ", J, ", 3, 4), found ", history_transforms.sizes());
+    history_transforms_ = history_transforms.to(at::kFloat).contiguous();
+  } else {
+    history_transforms_ = rest_pose_transforms(character_.joints, 3);
+  }
+  const at::Tensor A_rest = character_.V.index_select(0, character_.apparel_ids);
+  history_anchors_ = N_a > 0 ? linear_blend_skinning(A_rest, character_.apparel_anchor_weights, history_transforms_,
+                                                     character_.joints)
+                             : at::zeros({3, 0, 3}, at::kFloat);
 }
 
 StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, StepTimes* times) {
@@ -348,8 +396,24 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
   out.B_hat = skinned.narrow(0, 0, N_b);
   if (character_.num_apparel() > 0) {
     const at::Tensor anchor = skinned.size(0) > N_b ? skinned.narrow(0, N_b, skinned.size(0) - N_b) : at::Tensor();
-    out.A_hat =
-        bundle_.apparel.ptr()->step(history_, T.squeeze(0), character_.apparel_neighbors, anchor);  // eq. (11)
+    if (source_ == ApparelSource::kNetwork && !bundle_.local_apparel()) {
+      out.A_hat =
+          bundle_.apparel.ptr()->step(history_, T.squeeze(0), character_.apparel_neighbors, anchor);  // eq. (11)
+    } else {
+      // Frames t-3..t of the motion and the anchors, for the detail vectors.
+      const at::Tensor window_T = at::cat({history_transforms_, T}, 0).unsqueeze(0);                 // (1, 4, J, 3, 4)
+      const at::Tensor window_S = at::cat({history_anchors_, anchor.unsqueeze(0)}, 0).unsqueeze(0);  // (1, 4, N_a, 3)
+      const at::Tensor h = history_.unsqueeze(0);
+      if (source_ == ApparelSource::kNetwork) {
+        out.A_hat = bundle_.apparel_dynamics.ptr()->step(h, window_T, window_S, character_.apparel_graph()).squeeze(0);
+      } else {
+        const double inertia = source_ == ApparelSource::kInertial ? inertia_ : 0.0;
+        out.A_hat =
+            detail_rule_step(h, window_T, window_S, character_.apparel_frame_joints, inertia).squeeze(0);
+      }
+      history_transforms_ = window_T.squeeze(0).narrow(0, 1, 3);
+      history_anchors_ = window_S.squeeze(0).narrow(0, 1, 3);
+    }
     history_ = at::cat({history_.narrow(0, 1, 2), out.A_hat.unsqueeze(0)}, 0);
   } else {
     out.A_hat = at::zeros({0, 3}, at::kFloat);

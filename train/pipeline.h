@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "models/apparel_displacement.h"
+#include "models/apparel_dynamics.h"
 #include "models/apparel_segmenter.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_predictor.h"
@@ -29,10 +30,13 @@ struct ModelBundle {
   std::string dir;
   /// J joint names shared by every checkpoint.
   std::vector<std::string> joint_names;
-  /// f_c, f_s (the paper's geodesic-attention variant), f_d, f_j.
+  /// f_c, f_s (the paper's geodesic-attention variant), f_d, f_j. f_d is in one of its two forms:
+  /// apparel_dynamics (the local form, models/apparel_dynamics.h) or apparel (the earlier global
+  /// form, models/apparel_displacement.h); exactly one is set.
   ApparelSegmenter segmenter{nullptr};
   SkinningPredictor skinning{nullptr};
   ApparelDisplacementNet apparel{nullptr};
+  ApparelDynamicsNet apparel_dynamics{nullptr};
   JointRefiner refiner{nullptr};
   /// The Table 4 ablation variants of f_s, null when their checkpoints are absent.
   SkinningPredictor skinning_no_geodesic{nullptr};
@@ -42,6 +46,10 @@ struct ModelBundle {
 
   /// J.
   int64_t num_joints() const { return static_cast<int64_t>(joint_names.size()); }
+  /// Whether f_d is the local form.
+  bool local_apparel() const { return !apparel_dynamics.is_empty(); }
+  /// f_d as a module, whichever form it is.
+  const torch::nn::Module* apparel_module() const;
   /// The skinning predictor of `variant`: skinning, skinning_no_geodesic or skinning_sorted. Throws
   /// amt::Error naming the missing checkpoint when that variant was not loaded.
   SkinningPredictor skinning_for(SkinningVariant variant) const;
@@ -55,7 +63,8 @@ inline constexpr const char* kRefinerCheckpoint = "refiner.ckpt";
 inline constexpr const char* kSkinningNoGeodesicCheckpoint = "skinning_no_geodesic.ckpt";
 inline constexpr const char* kSkinningSortedCheckpoint = "skinning_sorted.ckpt";
 
-/// Loads <dir>/segmenter.ckpt, skinning.ckpt, apparel.ckpt, refiner.ckpt (required) and
+/// Loads <dir>/segmenter.ckpt, skinning.ckpt, apparel.ckpt (either form, told apart by its options:
+/// is_local_apparel_options), refiner.ckpt (required) and
 /// skinning_no_geodesic.ckpt, skinning_sorted.ckpt (optional), builds each network from its stored
 /// options and puts it in eval mode with gradients off. Throws amt::Error with a one-line reason for
 /// a missing folder or file ("m/apparel.ckpt: no such checkpoint (train it with amt train apparel)"),
@@ -116,6 +125,9 @@ struct BoundCharacter {
   /// apparel_anchor_weights (N_a, J) float: each apparel vertex's nearest body vertex's row of
   /// body_weights (apparel_anchor_weights), which skin the apparel network's anchor S^(t).
   at::Tensor apparel_anchor_weights;
+  /// The local apparel module's per-character inputs (ApparelGraph): each apparel vertex's frame
+  /// joint (N_a) int64 and rest channels (N_a, kApparelRestChannels) float.
+  at::Tensor apparel_frame_joints, apparel_rest_features;
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;
@@ -123,6 +135,8 @@ struct BoundCharacter {
   int64_t num_vertices() const { return V.size(0); }
   int64_t num_apparel() const { return apparel_ids.size(0); }
   int64_t num_body() const { return body_ids.size(0); }
+  /// The ApparelGraph of the local apparel module (neighbour table, frame joints, rest channels).
+  ApparelGraph apparel_graph() const { return {apparel_neighbors, apparel_frame_joints, apparel_rest_features}; }
 };
 
 /// Binds a character to the model:
@@ -139,6 +153,9 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
 /// Frames of motion_lead_in that evaluation's rollout protocol and the runtime put before a clip's
 /// first frame, so that both start a clip identically.
 inline constexpr int64_t kDefaultLeadInFrames = 10;
+
+/// The rest pose as joint transforms (frames, J, 3, 4): R = I, t = the rest joint (J, 3) positions.
+at::Tensor rest_pose_transforms(const at::Tensor& rest_joints, int64_t frames);
 
 /// A history of 3 copies of the rest apparel positions: (3, N_a, 3). With the motion blended in from
 /// the rest pose (motion_lead_in) this starts a user's clip with nothing but the rest mesh.
@@ -165,6 +182,11 @@ enum class PipelineStages {
 
 /// "body_only", "body_apparel", "full".
 const char* pipeline_stages_name(PipelineStages stages);
+
+/// What moves the apparel in kBodyApparel and kFull: the apparel module, or one of the zero-network
+/// rules on the same detail vectors (models/apparel_dynamics.h detail_rule_step): hold_offset
+/// (d_t = d_{t-1}) or inertial (d_t = d_{t-1} + inertia (d_{t-1} - d_{t-2})).
+enum class ApparelSource { kNetwork, kHoldOffset, kInertial };
 
 /// One frame's result.
 struct StepOutput {
@@ -194,8 +216,11 @@ class PipelineStepper {
   /// history (3, N_a, 3): A^(t-3), A^(t-2), A^(t-1), oldest first (rest_apparel_history, or ground
   /// truth for the paper protocol). Throws amt::Error for a history of another shape, or kBodyOnly
   /// without vertex_weights.
+  /// `source` and `inertia` choose what moves the apparel (ApparelSource); the history's frames are at
+  /// the rest pose (see reset).
   PipelineStepper(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
-                  PipelineStages stages = PipelineStages::kFull);
+                  PipelineStages stages = PipelineStages::kFull, ApparelSource source = ApparelSource::kNetwork,
+                  double inertia = 0.0);
 
   /// Predicts the next frame from its joint transforms T^(t) (J, 3, 4) and appends Â^(t) to the
   /// history -> V̂ (N, 3). `times`, when given, receives the wall time of each stage.
@@ -205,7 +230,9 @@ class PipelineStepper {
   StepOutput step_detailed(const at::Tensor& joint_transforms, StepTimes* times = nullptr);
 
   /// Replaces the history (3, N_a, 3) and the frame counter (e.g. at the start of a new window).
-  void reset(const at::Tensor& history);
+  /// history_transforms (3, J, 3, 4) are the motion of the history's frames, which the local apparel
+  /// module and the rules measure detail vectors against; undefined: the rest pose.
+  void reset(const at::Tensor& history, const at::Tensor& history_transforms = {});
 
   /// The current history (3, N_a, 3), oldest first.
   const at::Tensor& history() const { return history_; }
@@ -217,7 +244,11 @@ class PipelineStepper {
   const ModelBundle& bundle_;
   const BoundCharacter& character_;
   PipelineStages stages_;
+  ApparelSource source_;
+  double inertia_;
   at::Tensor history_;
+  // Local module and rules: the transforms (3, J, 3, 4) and anchors (3, N_a, 3) of the history's frames.
+  at::Tensor history_transforms_, history_anchors_;
   int64_t frames_ = 0;
   // Per-character constants of LBS: weights and rest positions of the skinned vertex set.
   at::Tensor lbs_rest_, lbs_weights_;

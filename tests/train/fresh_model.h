@@ -32,8 +32,11 @@ void save_fresh_checkpoint(const std::string& path, ModuleKind kind, const Net& 
 
 /// Writes segmenter.ckpt, skinning.ckpt, apparel.ckpt and refiner.ckpt of small networks on `joints`
 /// into `dir` (created) and returns `dir`.
+/// With `local_apparel` the apparel checkpoint is the local form (ApparelDynamicsNet, random last
+/// layer, identity normalisers), else the global form (ApparelDisplacementNet).
 inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t seed = 7,
-                                     const std::vector<std::string>& joints = canonical_joint_names()) {
+                                     const std::vector<std::string>& joints = canonical_joint_names(),
+                                     bool local_apparel = false) {
   std::filesystem::create_directories(dir);
   torch::manual_seed(seed);
   const int64_t J = static_cast<int64_t>(joints.size());
@@ -56,8 +59,22 @@ inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t 
   ao.edge_widths = {16, 16};
   ao.decoder_widths = {16};
   ao.zero_init = false;
-  save_fresh_checkpoint((dir / "apparel.ckpt").string(), ModuleKind::kApparel, ApparelDisplacementNet(ao),
-                        options_to_json(ao), joints);
+  if (local_apparel) {
+    ApparelDynamicsOptions lo;
+    lo.num_joints = J;
+    lo.edge_widths = {16, 16};
+    lo.decoder_widths = {16};
+    ApparelDynamicsNet net(lo);
+    net->freeze_normalizers();
+    {
+      torch::NoGradGuard no_grad;
+      for (auto& p : net->parameters()) p.copy_(0.05 * at::randn(p.sizes()));
+    }
+    save_fresh_checkpoint((dir / "apparel.ckpt").string(), ModuleKind::kApparel, net, options_to_json(lo), joints);
+  } else {
+    save_fresh_checkpoint((dir / "apparel.ckpt").string(), ModuleKind::kApparel, ApparelDisplacementNet(ao),
+                          options_to_json(ao), joints);
+  }
   JointRefinerOptions ro;
   ro.hidden_widths = {16};
   ro.zero_init = false;

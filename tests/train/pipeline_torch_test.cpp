@@ -204,6 +204,60 @@ TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
                 std::to_string(b.num_apparel()) + ", 3]");
 }
 
+TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
+  test::use_one_thread();
+  const std::string dir = test::write_fresh_model(test::test_directory("step_local_bundle"), 5,
+                                                  canonical_joint_names(), /*local_apparel=*/true);
+  const std::string data = test::test_directory("step_local_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1, {}});
+  const ModelBundle bundle = load_model_bundle(dir);
+  ASSERT_TRUE(bundle.local_apparel());
+  const MicroCharacter c = read_micro(data);
+  BindOptions options;
+  options.apparel_mask = c.mask;
+  const BoundCharacter b = bind_character(bundle, c.V, c.F, c.joints, options);
+  ASSERT_GT(b.num_apparel(), 0);
+  EXPECT_EQ(b.apparel_frame_joints.sizes(), (at::IntArrayRef{b.num_apparel()}));
+  EXPECT_EQ(b.apparel_rest_features.sizes(), (at::IntArrayRef{b.num_apparel(), kApparelRestChannels}));
+
+  DatasetReader reader(data);
+  const int T = 10, J = 22;
+  const Transforms transforms = reader.read_joint_transforms("walk0", 0, T);
+  at::Tensor motion = at::empty({T, J, 3, 4});
+  for (int i = 0; i < T * J; ++i)
+    std::memcpy(motion.data_ptr<float>() + 12 * i, transforms[i].data(), 12 * sizeof(float));
+  const MatrixX3f gt = reader.read_vertices("walk0", 0, T);
+  const int64_t N = c.V.size(0);
+  const at::Tensor V_gt = at::from_blob(const_cast<float*>(gt.data()), {T, N, 3}, at::kFloat).clone();
+  const at::Tensor history = V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
+  const at::Tensor anchors =
+      linear_blend_skinning(c.V.index_select(0, b.apparel_ids), b.apparel_anchor_weights, motion, c.joints);
+
+  // The stepper, reset on ground-truth states with their frames' motion, equals the module's rollout
+  // over the same frames (an off-by-one in the stepper's motion or anchor history would not).
+  PipelineStepper stepper(bundle, b, history, PipelineStages::kBodyApparel);
+  stepper.reset(history, motion.narrow(0, 0, 3));
+  std::vector<at::Tensor> A_hat;
+  for (int t = 3; t < T; ++t) A_hat.push_back(stepper.step_detailed(motion[t]).A_hat.clone());
+  torch::NoGradGuard no_grad;
+  const at::Tensor A_ref = bundle.apparel_dynamics.ptr()->rollout(history, motion, anchors, b.apparel_graph());
+  EXPECT_TRUE(at::allclose(at::stack(A_hat), A_ref, 1e-5, 1e-6));
+  EXPECT_GT((A_ref - anchors.narrow(0, 3, T - 3)).abs().max().item<float>(), 1e-4f);  // the network acts
+
+  // hold_offset from the rest pose: every detail vector is 0, so the apparel is exactly its anchor.
+  PipelineStepper hold(bundle, b, rest_apparel_history(b), PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);
+  for (int t = 0; t < 4; ++t) {
+    const at::Tensor A = hold.step_detailed(motion[t]).A_hat;
+    EXPECT_LT((A - anchors[t]).abs().max().item<float>(), 1e-5f) << t;
+  }
+  // Without the history's motion the detail vectors are measured against the rest pose: different.
+  PipelineStepper unaware(bundle, b, history, PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);
+  PipelineStepper aware(bundle, b, history, PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);
+  aware.reset(history, motion.narrow(0, 0, 3));
+  EXPECT_GT((unaware.step_detailed(motion[3]).A_hat - aware.step_detailed(motion[3]).A_hat).abs().max().item<float>(),
+            1e-4f);
+}
+
 TEST(PipelineStart, RestHistoryAndLeadIn) {
   // One joint rotated 90 degrees about Y and moved from (0, 1, 0) to (2, 1, 0): the middle lead-in frame
   // is rotated 45 degrees and halfway there.
