@@ -19,7 +19,9 @@
 #include "data_tools/body_penetration.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/lbs_torch.h"
 #include "data_tools/metrics_torch.h"
+#include "models/apparel_dynamics.h"
 #include "train/samples.h"
 
 namespace amt {
@@ -38,11 +40,15 @@ struct MethodSpec {
   // Bind configuration: "gt_weights", "predicted", "gt_mask", "gt_mask_no_geodesic", "gt_mask_sorted".
   std::string bind;
   PipelineStages stages;
+  ApparelSource source = ApparelSource::kNetwork;
 };
 
 const std::vector<MethodSpec>& method_specs() {
   static const std::vector<MethodSpec> specs = {
       {"skinning_baseline", "gt_weights", PipelineStages::kBodyOnly},
+      {"hold_offset", "gt_weights", PipelineStages::kBodyApparel, ApparelSource::kHoldOffset},
+      {"inertial", "gt_weights", PipelineStages::kBodyApparel, ApparelSource::kInertial},
+      {"apparel_gt", "gt_weights", PipelineStages::kBodyApparel, ApparelSource::kNetwork},
       {"lbs_predicted", "predicted", PipelineStages::kBodyOnly},
       {"body_apparel", "predicted", PipelineStages::kBodyApparel},
       {"full", "predicted", PipelineStages::kFull},
@@ -238,8 +244,23 @@ void add_to_curve(Curve& curve, int64_t t, double pmd_a) {
 struct Accumulators {
   std::map<Key, ScoreAccumulator> rows;
   std::map<Key, ScoreAccumulator> characters;  // (character, method, protocol)
-  std::map<std::pair<std::string, std::string>, Curve> curves;
+  std::map<std::pair<std::string, std::string>, Curve> curves;    // (subset, method): rollout frames
+  std::map<std::pair<std::string, std::string>, Curve> horizons;  // (subset, method): paper-window frames
+  // (method, protocol, subset) -> sums over frames of mean |V - S| and mean |V_gt - S| over apparel.
+  std::map<Key, std::pair<double, double>> amplitude;
 };
+
+// Mean over the apparel vertices (mask 1) of |a_i - b_i| (metres); 0 without apparel.
+double mean_apparel_distance(const MatrixX3f& a, const MatrixX3f& b, const std::vector<uint8_t>& mask) {
+  double sum = 0;
+  int count = 0;
+  for (Eigen::Index i = 0; i < a.rows(); ++i) {
+    if (!mask[i]) continue;
+    sum += (a.row(i) - b.row(i)).norm();
+    ++count;
+  }
+  return count ? sum / count : 0.0;
+}
 
 // Scores the frames of one clip for one method and protocol.
 class ClipScorer {
@@ -249,6 +270,7 @@ class ClipScorer {
       : c_(c) {
     row_ = &acc.rows[{method, protocol, c.subset}];
     row_->begin_clip();
+    amplitude_ = &acc.amplitude[{method, protocol, c.subset}];
     if (per_character) {
       character_ = &acc.characters[{c.name, method, protocol}];
       character_->begin_clip();
@@ -260,8 +282,13 @@ class ClipScorer {
   }
   ClipScorer(const ClipScorer&) = delete;
   ClipScorer& operator=(const ClipScorer&) = delete;
-  // Adds a frame and returns its PMD_a (cm; NaN without apparel).
-  double add(const PredictedFrame& frame, const MatrixX3f& gt) {
+  // Adds a frame (with `skinned`, the frame skinned by the ground-truth body weights, for the dynamics
+  // amplitude) and returns its PMD_a (cm; NaN without apparel).
+  double add(const PredictedFrame& frame, const MatrixX3f& gt, const MatrixX3f& skinned) {
+    if (c_.num_apparel > 0) {
+      amplitude_->first += mean_apparel_distance(frame.V, skinned, c_.mask);
+      amplitude_->second += mean_apparel_distance(gt, skinned, c_.mask);
+    }
     const Penetration* pen = frame.penetration ? &*frame.penetration : nullptr;
     row_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
     if (character_) character_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
@@ -272,6 +299,7 @@ class ClipScorer {
   const CharacterCache& c_;
   ScoreAccumulator* row_ = nullptr;
   ScoreAccumulator* character_ = nullptr;
+  std::pair<double, double>* amplitude_ = nullptr;
 };
 
 BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
@@ -293,7 +321,14 @@ MatrixX3f frame_of(const MatrixX3f& all, int64_t t, int64_t N) { return all.midd
 
 std::vector<MethodScores> collect_rows(const Accumulators& acc) {
   std::vector<MethodScores> rows;
-  for (const auto& [key, a] : acc.rows) rows.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), a.result()});
+  for (const auto& [key, a] : acc.rows) {
+    MethodScores row{std::get<0>(key), std::get<1>(key), std::get<2>(key), a.result()};
+    const auto amplitude = acc.amplitude.find(key);
+    // Below a micrometre of ground-truth lag per frame there is no dynamics to measure against.
+    if (amplitude != acc.amplitude.end() && amplitude->second.second > 1e-6 * std::max(1, row.scores.frames))
+      row.amplitude = amplitude->second.first / amplitude->second.second;
+    rows.push_back(std::move(row));
+  }
   // Order rows by the method order of evaluation_methods(), then protocol, then subset.
   const std::vector<std::string> order = evaluation_methods();
   const auto rank = [&](const std::string& m) {
@@ -332,15 +367,20 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
     mean.iou /= s.second, mean.f1 /= s.second, mean.precision /= s.second, mean.recall /= s.second;
     result.segmentation[subset] = mean;
   }
-  for (const auto& [key, curve] : acc.curves) {
-    RolloutCurve rc;
-    rc.subset = key.first;
-    rc.method = key.second;
-    rc.clips = curve.second;
-    for (size_t k = 0; k < curve.first.size(); ++k)
-      rc.pmd_a.push_back(curve.second[k] > 0 ? curve.first[k] / curve.second[k] : std::nan(""));
-    result.curves.push_back(std::move(rc));
-  }
+  const auto to_curves = [](const std::map<std::pair<std::string, std::string>, Curve>& from,
+                            std::vector<RolloutCurve>& to) {
+    for (const auto& [key, curve] : from) {
+      RolloutCurve rc;
+      rc.subset = key.first;
+      rc.method = key.second;
+      rc.clips = curve.second;
+      for (size_t k = 0; k < curve.first.size(); ++k)
+        rc.pmd_a.push_back(curve.second[k] > 0 ? curve.first[k] / curve.second[k] : std::nan(""));
+      to.push_back(std::move(rc));
+    }
+  };
+  to_curves(acc.curves, result.curves);
+  to_curves(acc.horizons, result.horizons);
 }
 
 std::vector<std::unique_ptr<DatasetReader>> open_shards(const std::vector<std::string>& shards) {
@@ -352,6 +392,51 @@ std::vector<std::unique_ptr<DatasetReader>> open_shards(const std::vector<std::s
               readers.back()->joint_names().size(), " different ones");
   }
   return readers;
+}
+
+// The inertia of the inertial rule, least-squares fitted (InertiaFit) on the ground-truth detail
+// vectors of up to 16 training clips of training characters (the first of each character, round
+// robin), with the anchors the rule uses (nearest body vertex's ground-truth weights). Returns the
+// inertia and the number of clips.
+std::pair<double, int> fit_inertia(std::vector<std::unique_ptr<DatasetReader>>& readers, int64_t J) {
+  constexpr int kClips = 16;
+  InertiaFit fit;
+  int clips = 0;
+  c10::InferenceMode inference;
+  for (size_t round = 0; round < 4 && clips < kClips; ++round) {
+    for (size_t s = 0; s < readers.size() && clips < kClips; ++s) {
+      const DatasetReader& reader = *readers[s];
+      std::map<std::string, std::vector<std::string>> train_clips;
+      for (const std::string& name : reader.clip_names()) {
+        const ClipInfo info = reader.clip_info(name);
+        if (info.split == "train" && reader.character_summary(info.character).split == "train")
+          train_clips[info.character].push_back(name);
+      }
+      for (const auto& [character, names] : train_clips) {
+        if (round >= names.size() || clips >= kClips) continue;
+        const CharacterData data = reader.read_character(character);
+        const int64_t N = data.mesh.num_vertices();
+        const at::Tensor V = float_tensor(data.mesh.V.data(), {N, 3});
+        const at::Tensor joints = float_tensor(data.skeleton.rest_joints.data(), {J, 3});
+        const at::Tensor W = float_tensor(data.body_weights.data(), {N, J});
+        const at::Tensor mask =
+            at::from_blob(const_cast<uint8_t*>(data.apparel_mask.data()), {N}, at::kByte).to(at::kBool);
+        const at::Tensor apparel_ids = at::nonzero(mask).flatten(), body_ids = at::nonzero(mask.logical_not()).flatten();
+        if (apparel_ids.size(0) == 0 || body_ids.size(0) == 0) continue;
+        const at::Tensor anchor_weights =
+            apparel_anchor_weights(V, apparel_ids, body_ids, W.index_select(0, body_ids));
+        const ClipInfo info = reader.clip_info(names[round]);
+        const int64_t T = info.num_frames;
+        const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(info.name, 0, T), T, J);
+        const MatrixX3f all = reader.read_vertices(info.name, 0, static_cast<int>(T));
+        const at::Tensor A = float_tensor(all.data(), {T, N, 3}).index_select(1, apparel_ids);
+        const at::Tensor S = linear_blend_skinning(V.index_select(0, apparel_ids), anchor_weights, motion, joints);
+        fit.add(detail_vectors(A, S, motion, anchor_weights.argmax(1)));
+        ++clips;
+      }
+    }
+  }
+  return {fit.inertia(), clips};
 }
 
 }  // namespace
@@ -367,6 +452,9 @@ std::vector<std::string> evaluation_methods() {
 std::string method_label(const std::string& method) {
   static const std::map<std::string, std::string> labels = {
       {"skinning_baseline", "Skinning baseline (LBS, GT body weights)"},
+      {"hold_offset", "hold_offset rule (no network)"},
+      {"inertial", "inertial rule (no network)"},
+      {"apparel_gt", "Apparel module, GT mask + weights"},
       {"lbs_predicted", "LBS, predicted weights (body module only)"},
       {"body_apparel", "Body + apparel modules"},
       {"full", "Full model"},
@@ -402,8 +490,11 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   std::vector<MethodSpec> methods;
   const std::vector<std::string> all = evaluation_methods();
   for (const std::string& m : options.methods)
-    AMT_CHECK(std::find(all.begin(), all.end(), m) != all.end(), "eval: method: expected one of skinning_baseline, ",
-              "lbs_predicted, body_apparel, full, full_gt_mask, no_geodesic, sort_by_geodesic, found '", m, "'");
+    AMT_CHECK(std::find(all.begin(), all.end(), m) != all.end(), "eval: method: expected one of ", [&] {
+      std::string list;
+      for (const std::string& key : all) list += (list.empty() ? "" : ", ") + key;
+      return list;
+    }(), ", found '", m, "'");
   for (const MethodSpec& spec : method_specs()) {
     if (!options.methods.empty() &&
         std::find(options.methods.begin(), options.methods.end(), spec.key) == options.methods.end())
@@ -427,6 +518,13 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   AMT_CHECK(!clips.empty(), shards.front(), (shards.size() > 1 ? " (and the other shards)" : ""),
             ": no held-out clips (expected clips of test characters, or test clips of train characters)");
   const int64_t J = bundle.num_joints();
+  double inertia = 0.0;
+  if (std::any_of(methods.begin(), methods.end(), [](const MethodSpec& m) { return m.source == ApparelSource::kInertial; })) {
+    std::tie(inertia, result.inertia_clips) = fit_inertia(readers, J);
+    result.inertia = inertia;
+    result.notes.push_back("inertial rule: inertia " + std::to_string(inertia) + ", least-squares fitted on " +
+                           std::to_string(result.inertia_clips) + " training clips (InertiaFit).");
+  }
   // "body_apparel" is the full model without its refiner: the same bind, B̂ and Â (the apparel history
   // holds Â, not the refined V̂). When both run, the full model's steps also give body_apparel's
   // frames, tile(Â, B̂), which is what a body_apparel stepper returns, at the cost of one model run.
@@ -458,6 +556,13 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     const at::Tensor gt_tensor = float_tensor(gt_all.data(), {T, N, 3});
     std::vector<MatrixX3f> gt(static_cast<size_t>(T));  // gt[t] (N, 3)
     for (int64_t t = 0; t < T; ++t) gt[t] = frame_of(gt_all, t, N);
+    // The clip skinned by the ground-truth body weights: the dynamics amplitude's reference.
+    std::vector<MatrixX3f> skinned(static_cast<size_t>(T));
+    {
+      c10::InferenceMode inference;
+      const at::Tensor all = linear_blend_skinning(c.V, c.gt_weights, motion, c.joints).contiguous();
+      for (int64_t t = 0; t < T; ++t) skinned[t] = to_matrix(all[t]);
+    }
     if (options.paper && T < options.window) ++short_clips;
     // The frames that the paper protocol predicts (each once): windows at a stride of window - 3.
     const bool paper = options.paper && T >= options.window;
@@ -484,8 +589,13 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         for (int64_t t = 0; t < T; ++t) {
           if (!rollout_scorer && !paper_frame[t]) continue;
           const PredictedFrame frame = predicted_frame(c, to_matrix(stepper.step(motion[t])));
-          if (paper_frame[t]) paper_scorer->add(frame, gt[t]);
-          if (rollout_scorer) add_to_curve(acc.curves[{c.subset, m.key}], t, rollout_scorer->add(frame, gt[t]));
+          if (paper_frame[t]) {
+            const double pmd_a = paper_scorer->add(frame, gt[t], skinned[t]);
+            const int64_t window_start = (t - kHistory) / (options.window - kHistory) * (options.window - kHistory);
+            add_to_curve(acc.horizons[{c.subset, m.key}], t - window_start - kHistory, pmd_a);
+          }
+          if (rollout_scorer)
+            add_to_curve(acc.curves[{c.subset, m.key}], t, rollout_scorer->add(frame, gt[t], skinned[t]));
         }
         continue;
       }
@@ -494,13 +604,13 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       const bool with_tiled = tiled_from_full && m.key == full_spec->key;
       const auto score_step = [&](PipelineStepper& stepper, int64_t t, ClipScorer& scorer, ClipScorer* tiled) {
         const StepOutput out = stepper.step_detailed(motion[t]);
-        const double pmd_a = scorer.add(predicted_frame(c, to_matrix(out.V_hat)), gt[t]);
+        const double pmd_a = scorer.add(predicted_frame(c, to_matrix(out.V_hat)), gt[t], skinned[t]);
         if (tiled) {
           // tile(Â, B̂): the bound index lists partition the mesh.
           c10::InferenceMode inference;
           at::Tensor tiled_V = at::empty({N, 3}, at::kFloat);
           tiled_V.index_copy_(0, b.apparel_ids, out.A_hat).index_copy_(0, b.body_ids, out.B_hat);
-          return std::make_pair(pmd_a, tiled->add(predicted_frame(c, to_matrix(tiled_V)), gt[t]));
+          return std::make_pair(pmd_a, tiled->add(predicted_frame(c, to_matrix(tiled_V)), gt[t], skinned[t]));
         }
         return std::make_pair(pmd_a, 0.0);
       };
@@ -509,18 +619,21 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         ClipScorer scorer(acc, c, m.key, kPaper, per_character(m.key));
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
-        PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages);
+        PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages, m.source, inertia);
         for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
-          stepper.reset(gt_apparel.narrow(0, s, kHistory));
-          for (int64_t t = s + kHistory; t < s + options.window; ++t)
-            score_step(stepper, t, scorer, tiled ? &*tiled : nullptr);
+          stepper.reset(gt_apparel.narrow(0, s, kHistory), motion.narrow(0, s, kHistory));
+          for (int64_t t = s + kHistory; t < s + options.window; ++t) {
+            const auto [pmd_a, tiled_pmd_a] = score_step(stepper, t, scorer, tiled ? &*tiled : nullptr);
+            add_to_curve(acc.horizons[{c.subset, m.key}], t - s - kHistory, pmd_a);
+            if (tiled) add_to_curve(acc.horizons[{c.subset, tiled_spec->key}], t - s - kHistory, tiled_pmd_a);
+          }
         }
       }
       if (options.rollout) {
         ClipScorer scorer(acc, c, m.key, kRollout, per_character(m.key));
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
-        PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages);
+        PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages, m.source, inertia);
         const at::Tensor lead_in = motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames);
         for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
         Curve& curve = acc.curves[{c.subset, m.key}];
@@ -582,10 +695,18 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     ++result.clips[clip.subset];
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
+    const int64_t J = static_cast<int64_t>(reader.joint_names().size());
+    at::Tensor skinned_all;
+    {
+      c10::InferenceMode inference;
+      const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
+      skinned_all = linear_blend_skinning(c.V, c.gt_weights, motion, c.joints).contiguous();
+    }
     ClipScorer scorer(acc, c, "predictions", "file", true);
     Curve& curve = acc.curves[{c.subset, "predictions"}];
     for (int64_t t = 0; t < T; ++t)
-      add_to_curve(curve, t, scorer.add(predicted_frame(c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N)));
+      add_to_curve(curve, t, scorer.add(predicted_frame(c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N),
+                                        to_matrix(skinned_all[t])));
     progress.update(static_cast<int>(k + 1));
   }
   finish(result, acc, characters.loaded);
@@ -632,6 +753,7 @@ std::string evaluation_json(const EvaluationResult& result) {
     row["method"] = r.method;
     row["protocol"] = r.protocol;
     row["subset"] = r.subset;
+    row["dynamics_amplitude"] = number(r.amplitude);
     rows.push_back(row);
   }
   j["rows"] = rows;
@@ -660,6 +782,14 @@ std::string evaluation_json(const EvaluationResult& result) {
                       {"pmd_a_cm_at_frame", at_frames}});
   }
   j["rollout_curves"] = curves;
+  Json horizons = Json::array();
+  for (const RolloutCurve& c : result.horizons) {
+    Json values = Json::array();
+    for (double v : c.pmd_a) values.push_back(number(v));
+    horizons.push_back({{"subset", c.subset}, {"method", c.method}, {"pmd_a_cm", values}, {"clips", c.clips}});
+  }
+  j["paper_horizons"] = horizons;
+  if (result.inertia_clips > 0) j["inertia"] = {{"value", result.inertia}, {"clips", result.inertia_clips}};
   j["notes"] = result.notes;
   return j.dump(2) + "\n";
 }

@@ -10,6 +10,7 @@
 //              rest pose (motion_lead_in, kDefaultLeadInFrames), as a user runs it.
 // Two subsets: "held-out characters" (clips of characters whose split is test) and "held-out clips"
 // (clips whose split is test, of characters whose split is train).
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -23,6 +24,13 @@ namespace amt {
 
 /// Methods, by key (paper Tables 2-4):
 ///   skinning_baseline  every vertex, apparel included, skinned with the ground-truth body weights;
+///   hold_offset        zero-network rule: the body skinned with the ground-truth weights, each apparel
+///                      vertex's detail vector (its offset from its skinned anchor, in its frame joint's
+///                      frame) carried along unchanged (models/apparel_dynamics.h detail_rule_step);
+///   inertial           zero-network rule: the detail vector continues with its last velocity, damped
+///                      by the inertia least-squares fitted on training clips (InertiaFit);
+///   apparel_gt         the apparel module on the same bind as the rules (ground-truth mask and
+///                      weights, no refiner): the module itself, measured exactly as the rules are;
 ///   lbs_predicted      every vertex skinned with predicted weights ("body module only");
 ///   body_apparel       B̂ and Â tiled, no refiner;
 ///   full               the full model (predicted mask);
@@ -58,6 +66,11 @@ struct EvaluateOptions {
 struct MethodScores {
   std::string method, protocol, subset;
   MotionScores scores;
+  /// Dynamics amplitude: mean over frames of mean |Â - S| over apparel vertices, divided by the same
+  /// for the ground truth, with S the apparel skinned by the dataset's ground-truth body weights (the
+  /// skinning baseline's apparel): 0 = glued to the body, 1 = as lively as the simulation. NaN
+  /// without apparel.
+  double amplitude = std::nan("");
 };
 
 /// Scores of one character (all its evaluated clips).
@@ -70,7 +83,8 @@ struct CharacterScores {
   std::map<std::string, std::map<std::string, MotionScores>> scores;
 };
 
-/// PMD_a (cm) of the full model per rollout frame, averaged over the clips that are that long.
+/// PMD_a (cm) of a method per rollout frame (or per predicted frame of a paper-protocol window),
+/// averaged over the clips that are that long.
 struct RolloutCurve {
   std::string subset, method;
   /// pmd_a[k] is the mean PMD_a of predicted frame k + 1; clips[k] how many clips reached it.
@@ -89,6 +103,12 @@ struct EvaluationResult {
   std::map<std::string, SegmentationScores> segmentation;
   std::vector<CharacterScores> characters;
   std::vector<RolloutCurve> curves;
+  /// Paper protocol per horizon: pmd_a[k] is the mean PMD_a of the (k + 1)-th predicted frame of the
+  /// windows (k = 0: teacher-forced one step, from 3 ground-truth states).
+  std::vector<RolloutCurve> horizons;
+  /// The inertia of the inertial rule and the number of training clips it was fitted on (0: not run).
+  double inertia = std::nan("");
+  int inertia_clips = 0;
   /// subset -> number of clips evaluated.
   std::map<std::string, int> clips;
   /// Things the report must say (missing ablation checkpoints, clips too short for a window, ...).

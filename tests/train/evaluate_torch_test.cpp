@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 #include <torch/utils.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -34,7 +36,9 @@ std::string write_fresh_bundle(const std::string& name) {
 // A dataset whose ground truth IS LBS with the ground-truth weights (apparel included): one test
 // character with one walk (or `test_characters` of them with `test_clips` walks each, named
 // capsules_test, capsules_test1, ...), one train character with a train walk and a test walk.
-void write_lbs_dataset(const std::string& path, int frames, int test_characters = 1, int test_clips = 1) {
+// `shift` (metres, along x) moves every vertex of every frame: a prediction off by a known amount.
+void write_lbs_dataset(const std::string& path, int frames, int test_characters = 1, int test_clips = 1,
+                       float shift = 0.0f) {
   const Skeleton skeleton = canonical_skeleton();
   DatasetWriter writer(path, 30.0f, skeleton.names);
   std::vector<std::pair<std::string, std::string>> characters;  // (name, split)
@@ -61,6 +65,7 @@ void write_lbs_dataset(const std::string& path, int frames, int test_characters 
         const Transforms joints = forward_kinematics(skeleton, walk, t);
         MatrixX3f posed;
         linear_blend_skinning(character.mesh.V, weights, skinning_matrices(skeleton, joints), posed);
+        posed.col(0).array() += shift;
         writer.append_frame(joints, posed);
       }
       writer.end_clip();
@@ -186,6 +191,66 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
             std::string::npos);
 }
 
+TEST(Evaluate, PredictionShiftedByOneCentimetreScoresOneCentimetre) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_shifted");
+  write_lbs_dataset(dir + "/lbs.h5", 12);
+  write_lbs_dataset(dir + "/shifted.h5", 12, 1, 1, 0.01f);
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  const EvaluationResult result = evaluate_predictions({dir + "/lbs.h5"}, dir + "/shifted.h5", options);
+  for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
+    const MethodScores* row = result.find("predictions", "file", subset);
+    ASSERT_NE(row, nullptr) << subset;
+    EXPECT_NEAR(row->scores.pmd_a, 1.0, 1e-4) << subset;
+    EXPECT_NEAR(row->scores.pmd, 1.0, 1e-4) << subset;
+    EXPECT_NEAR(row->scores.els, 1.0, 1e-5) << subset;  // a translation keeps every edge
+  }
+  // Dynamics amplitude against a ground truth that lags 1 cm behind skinning: the skinned frames
+  // have none of it (0), the ground truth itself all of it (1).
+  const EvaluationResult glued = evaluate_predictions({dir + "/shifted.h5"}, dir + "/lbs.h5", options);
+  const EvaluationResult lively = evaluate_predictions({dir + "/shifted.h5"}, dir + "/shifted.h5", options);
+  EXPECT_NEAR(glued.find("predictions", "file", kHeldOutClips)->amplitude, 0.0, 1e-4);
+  EXPECT_NEAR(lively.find("predictions", "file", kHeldOutClips)->amplitude, 1.0, 1e-4);
+}
+
+TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
+  test::use_one_thread();
+  const std::string data = test::test_directory("eval_rules") + "/lbs.h5";
+  write_lbs_dataset(data, 17);
+  const std::string dir = test::write_fresh_model(test::test_directory("eval_local_bundle"), 3,
+                                                  canonical_joint_names(), /*local_apparel=*/true);
+  const ModelBundle bundle = load_model_bundle(dir);
+  ASSERT_TRUE(bundle.local_apparel());
+  EvaluateOptions options;
+  options.methods = {"skinning_baseline", "hold_offset", "inertial", "body_apparel", "full"};
+  options.progress = false;
+  const EvaluationResult result = evaluate_model(bundle, {data}, options);
+  // The inertia is fitted on the train character's train clip.
+  EXPECT_EQ(result.inertia_clips, 1);
+  EXPECT_GE(result.inertia, 0.0);
+  EXPECT_LE(result.inertia, 1.0);
+  for (const char* method : {"hold_offset", "inertial", "body_apparel", "full"}) {
+    const MethodScores* paper = result.find(method, "paper", kHeldOutCharacters);
+    ASSERT_NE(paper, nullptr) << method;
+    EXPECT_EQ(paper->scores.frames, 14) << method;
+    EXPECT_TRUE(std::isfinite(paper->scores.pmd_a)) << method;
+    EXPECT_TRUE(std::isnan(paper->amplitude)) << method;  // the ground truth is skinning: no dynamics to match
+    // Per horizon: 7 predicted frames per window, 2 windows each; their mean is the paper PMD_a.
+    const auto horizon = std::find_if(result.horizons.begin(), result.horizons.end(), [&](const RolloutCurve& c) {
+      return c.method == method && c.subset == kHeldOutCharacters;
+    });
+    ASSERT_NE(horizon, result.horizons.end()) << method;
+    ASSERT_EQ(horizon->pmd_a.size(), 7u) << method;
+    double sum = 0;
+    for (size_t k = 0; k < 7; ++k) EXPECT_EQ(horizon->clips[k], 2) << method;
+    for (double v : horizon->pmd_a) sum += v;
+    EXPECT_NEAR(sum / 7, paper->scores.pmd_a, 1e-6 * paper->scores.pmd_a + 1e-9) << method;
+    ASSERT_NE(result.find(method, "rollout", kHeldOutCharacters), nullptr) << method;
+  }
+}
+
 TEST(Evaluate, SkeletonMismatchAndUnknownMethod) {
   test::use_one_thread();
   const std::string dir = test::test_directory("eval_errors");
@@ -217,9 +282,10 @@ TEST(Report, WritesTablesJsonAndPlots) {
   options.progress = false;
   options.penetration = false;
   const EvaluationResult result = evaluate_model(bundle, {dir + "/lbs.h5"}, options);
-  // No ablation checkpoints in the folder: the report says so.
-  ASSERT_EQ(result.notes.size(), 2u);
+  // No ablation checkpoints in the folder: the report says so; and the inertial rule's fitted inertia.
+  ASSERT_EQ(result.notes.size(), 3u);
   EXPECT_NE(result.notes[0].find("skinning_no_geodesic.ckpt is not in the model folder"), std::string::npos);
+  EXPECT_NE(result.notes[2].find("inertial rule: inertia"), std::string::npos);
 
   ReportOptions report;
   report.out_dir = dir + "/out";
