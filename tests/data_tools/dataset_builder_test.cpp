@@ -247,5 +247,36 @@ TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) 
   }
 }
 
+// The command's default motions are found when it runs (app/repository.h), not at a path compiled in.
+TEST(DatasetBuildCommand, DefaultMotionsAreFoundAboveTheProgramOrInTheCurrentFolder) {
+  const fs::path elsewhere = fs::canonical(test::temp_dir("build_command_elsewhere"));
+  const std::string in_elsewhere = "cd '" + elsewhere.string() + "' && ";
+  // The checkout's program, run from another folder, finds the checkout's data/ (and models/).
+  test::CommandResult help = test::run_command(in_elsewhere + "'" + AMT_BINARY + "' dataset build --help");
+  EXPECT_EQ(help.status, 0) << help.err;
+  EXPECT_NE(help.out.find("(here: " AMT_ASSET_DIR "/mocap/cmu)"), std::string::npos) << help.out;
+  help = test::run_command(in_elsewhere + "'" + AMT_BINARY + "' animate --help");
+  EXPECT_NE(help.out.find("(here: " + fs::path(AMT_ASSET_DIR).parent_path().string() + "/models/pretrained)"),
+            std::string::npos)
+      << help.out;
+
+  // A copy of the program outside any checkout has no default: it says what to pass, and writes nothing.
+  const fs::path program = fs::canonical(test::temp_dir("build_command_copy")) / "amt";
+  fs::copy_file(AMT_BINARY, program);
+  fs::permissions(program, fs::perms::owner_all);
+  const test::CommandResult failed =
+      test::run_command(in_elsewhere + "'" + program.string() + "' dataset build --out built --threads 1");
+  EXPECT_EQ(failed.status, 1);
+  EXPECT_EQ(failed.err, "amt: error: --motions: no default: data/mocap/cmu is neither above the amt program (" +
+                            program.string() + ") nor in the current folder (" + elsewhere.string() +
+                            "); pass --motions FOLDER (BVH files), or --motions \"\" for procedural motions only\n");
+  EXPECT_FALSE(fs::exists(elsewhere / "built"));
+  // Run from a folder that has data/mocap/cmu, the copy takes that one.
+  fs::create_directories(elsewhere / "data" / "mocap" / "cmu");
+  help = test::run_command(in_elsewhere + "'" + program.string() + "' dataset build --help");
+  EXPECT_NE(help.out.find("(here: " + (elsewhere / "data" / "mocap" / "cmu").string() + ")"), std::string::npos)
+      << help.out;
+}
+
 }  // namespace
 }  // namespace amt
