@@ -16,18 +16,31 @@
 namespace amt::app {
 namespace {
 
-// `amt dataset info FILE`: prints the summary of a dataset file.
+// `amt dataset info FILE|DIR`: prints the summary of a dataset file, or of a dataset folder with the shards its
+// manifest names that are missing or damaged (then it fails, after the summary).
 void add_info_command(CLI::App& dataset) {
-  auto* info = dataset.add_subcommand("info", "Summarise a dataset file: characters, clips, frames and splits");
+  auto* info = dataset.add_subcommand(
+      "info", "Summarise a dataset file, or a dataset folder (totals, size, missing or damaged shards): characters, "
+              "clips, frames and splits");
   auto path = std::make_shared<std::string>();
-  // Existence is checked in the callback, not with CLI::ExistingFile, so that a missing file is
+  // Existence is checked in the callback, not with CLI::ExistingPath, so that a missing path is
   // reported as the one-line amt error.
-  info->add_option("FILE", *path, "Dataset file (HDF5, format amt-dataset)")->required();
+  info->add_option("PATH", *path, "Dataset file (HDF5, format amt-dataset) or folder written by amt dataset build")
+      ->required();
   add_threads_option(*info);
   info->callback([path] {
     std::error_code error;
-    AMT_CHECK(std::filesystem::exists(*path, error), *path, ": no such file (expected a dataset file written by amt)");
-    print_dataset_info(*path, std::cout);
+    AMT_CHECK(std::filesystem::exists(*path, error), *path,
+              ": no such file or folder (expected a dataset file or folder written by amt)");
+    if (!std::filesystem::is_directory(*path, error)) {
+      print_dataset_info(*path, std::cout);
+      return;
+    }
+    const DatasetFolderSummary summary = summarise_dataset_folder(*path);
+    print_dataset_folder_summary(summary, std::cout);
+    const int problems = summary.num_problems();
+    AMT_CHECK(problems == 0, *path, ": ", problems, " of ", summary.shards.size(),
+              " shards missing, damaged or not in the manifest (listed above)");
   });
 }
 
