@@ -5,15 +5,15 @@
 # models/pretrained/. Writes out/demo.glb (opens in three.js, Blender or any glTF viewer) and prints
 # the summary: frames, time per frame, penetration share before and after resolution.
 #
-# Environment: AMT_BUILD_DIR (default build), AMT_MODEL (default models/pretrained),
-# AMT_DEMO_CLIP (default 02_01.bvh, a walk), AMT_THREADS (2).
+# Environment: AMT_BUILD_DIR (default build), AMT_JOBS (build jobs, default: all cores),
+# AMT_MODEL (default models/pretrained), AMT_DEMO_CLIP (default 02_01.bvh, a walk), AMT_THREADS (2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 ./scripts/setup.sh
 build_dir=${AMT_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build_dir" -j"$(nproc)" --target amt
+cmake --build "$build_dir" -j"${AMT_JOBS:-$(nproc)}" --target amt
 
 amt="$build_dir/app/amt"
 clip="data/mocap/cmu/${AMT_DEMO_CLIP:-02_01.bvh}"
