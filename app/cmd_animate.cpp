@@ -5,16 +5,18 @@
 #include <optional>
 #include <string>
 
-#include "amt/version.h"
 #include "app/commands.h"
+#include "app/repository.h"
 #include "data_tools/error.h"
 #include "infer/runtime_torch.h"
 
 namespace amt::app {
 
+// The model of `amt animate` when --model is not given: the shipped one.
+constexpr const char* kDefaultModel = "models/pretrained";
+
 void add_animate_command(CLI::App& app) {
   auto o = std::make_shared<AnimateOptions>();
-  o->model_dir = AMT_SOURCE_DIR "/models/pretrained";
   auto fps = std::make_shared<double>(0.0);
   auto bvh_scale = std::make_shared<double>(0.0);
   auto no_resolve = std::make_shared<bool>(false);
@@ -25,8 +27,9 @@ void add_animate_command(CLI::App& app) {
                   "generated:SEED[:VERTICES]")
       ->required();
   cmd->add_option("--motion", o->motion.spec, "Motion: .bvh, .glb/.gltf animation, or data.h5:clip")->required();
-  cmd->add_option("--model", o->model_dir, "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner)")
-      ->capture_default_str();
+  auto* model = cmd->add_option("--model", o->model_dir,
+                                "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner). " +
+                                    repository_default_help(kDefaultModel));
   cmd->add_option("--out", o->out,
                   "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ files")
       ->required();
@@ -55,8 +58,9 @@ void add_animate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No mapping and progress lines on stderr");
   add_threads_option(*cmd);
-  cmd->callback([o, fps, bvh_scale, no_resolve, quiet] {
+  cmd->callback([o, model, fps, bvh_scale, no_resolve, quiet] {
     AnimateOptions options = *o;
+    if (model->count() == 0) options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
     if (*fps > 0) options.playback.fps = float(*fps);
     if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;
     options.resolve_penetration = !*no_resolve;

@@ -4,8 +4,8 @@
 #include <memory>
 #include <string>
 
-#include "amt/version.h"
 #include "app/commands.h"
+#include "app/repository.h"
 #include "data_tools/dataset_builder.h"
 #include "data_tools/dataset_info.h"
 #include "data_tools/dataset_preview.h"
@@ -16,18 +16,31 @@
 namespace amt::app {
 namespace {
 
-// `amt dataset info FILE`: prints the summary of a dataset file.
+// `amt dataset info FILE|DIR`: prints the summary of a dataset file, or of a dataset folder with the shards its
+// manifest names that are missing or damaged (then it fails, after the summary).
 void add_info_command(CLI::App& dataset) {
-  auto* info = dataset.add_subcommand("info", "Summarise a dataset file: characters, clips, frames and splits");
+  auto* info = dataset.add_subcommand(
+      "info", "Summarise a dataset file, or a dataset folder (totals, size, missing or damaged shards): characters, "
+              "clips, frames and splits");
   auto path = std::make_shared<std::string>();
-  // Existence is checked in the callback, not with CLI::ExistingFile, so that a missing file is
+  // Existence is checked in the callback, not with CLI::ExistingPath, so that a missing path is
   // reported as the one-line amt error.
-  info->add_option("FILE", *path, "Dataset file (HDF5, format amt-dataset)")->required();
+  info->add_option("PATH", *path, "Dataset file (HDF5, format amt-dataset) or folder written by amt dataset build")
+      ->required();
   add_threads_option(*info);
   info->callback([path] {
     std::error_code error;
-    AMT_CHECK(std::filesystem::exists(*path, error), *path, ": no such file (expected a dataset file written by amt)");
-    print_dataset_info(*path, std::cout);
+    AMT_CHECK(std::filesystem::exists(*path, error), *path,
+              ": no such file or folder (expected a dataset file or folder written by amt)");
+    if (!std::filesystem::is_directory(*path, error)) {
+      print_dataset_info(*path, std::cout);
+      return;
+    }
+    const DatasetFolderSummary summary = summarise_dataset_folder(*path);
+    print_dataset_folder_summary(summary, std::cout);
+    const int problems = summary.num_problems();
+    AMT_CHECK(problems == 0, *path, ": ", problems, " of ", summary.shards.size(),
+              " shards missing, damaged or not in the manifest (listed above)");
   });
 }
 
@@ -69,20 +82,23 @@ void add_preview_command(CLI::App& dataset) {
   });
 }
 
+// The motions of `amt dataset build` when --motions is not given: the 20 CMU clips in the repository.
+constexpr const char* kDefaultMotions = "data/mocap/cmu";
+
 // `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/dataset_builder.h).
 void add_build_command(CLI::App& dataset) {
   auto* build = dataset.add_subcommand(
       "build", "Build a dataset: procedural dressed characters simulated under every motion clip, one HDF5 shard "
                "per character (seeded, resumable, --shard i/n for several processes)");
   auto options = std::make_shared<DatasetBuildOptions>();
-  options->motions = AMT_SHARED_DATA_DIR "/mocap/cmu";
   auto shard = std::make_shared<std::string>("0/1");
   build->add_option("--out", options->out, "Output folder (shards, manifest.json, character records)")->required();
   build->add_option("--seed", options->seed, "Seed of characters, apparel, splits and procedural motions")
       ->capture_default_str();
   build->add_option("--characters", options->characters, "Number of characters")->capture_default_str();
-  build->add_option("--motions", options->motions, "Folder of BVH files (every *.bvh); \"\" for none")
-      ->capture_default_str();
+  auto* motions = build->add_option(
+      "--motions", options->motions,
+      "Folder of BVH files (every *.bvh); \"\" for none. " + repository_default_help(kDefaultMotions));
   build->add_option("--procedural", options->procedural, "Number of procedural motion clips")->capture_default_str();
   build->add_option("--frames", options->frames, "Frames per clip (30 fps)")->capture_default_str();
   build->add_option("--vertices", options->vertices, "Target vertex count of each body before dressing")
@@ -98,7 +114,11 @@ void add_build_command(CLI::App& dataset) {
       ->capture_default_str();
   build->add_option("--shard", *shard, "Build characters c with c % n == i (i/n)")->capture_default_str();
   add_threads_option(*build);
-  build->callback([options, shard] {
+  build->callback([options, shard, motions] {
+    if (motions->count() == 0) {
+      options->motions = repository_default(kDefaultMotions, "--motions",
+                                            "FOLDER (BVH files), or --motions \"\" for procedural motions only");
+    }
     options->shard = parse_shard(*shard);
     options->progress = &std::cerr;
     const DatasetBuildReport report = build_dataset(*options);

@@ -170,25 +170,36 @@ std::string first_difference(const json& here, const json& there, const std::str
   return name + ": " + a + " here, " + b + " in the folder";
 }
 
+std::string manifest_path(const std::string& dir) {
+  return (fs::path(dir) / "manifest.json").string();
+}
+
+// Parses a manifest file and checks its format and version.
+json read_manifest_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  AMT_CHECK(in.good(), path, ": cannot read (expected the manifest of an amt dataset build)");
+  std::stringstream text;
+  text << in.rdbuf();
+  json manifest;
+  try {
+    manifest = json::parse(text.str());
+  } catch (const json::exception& e) {
+    fail(path, ": not valid JSON (", e.what(), "); expected the manifest of an amt dataset build");
+  }
+  const bool has_format = manifest.is_object() && manifest.contains("format");
+  AMT_CHECK(has_format && manifest.value("format", "") == kManifestFormat, path, ": format: expected '",
+            kManifestFormat, "', found ", has_format ? manifest["format"].dump() : std::string("none"));
+  AMT_CHECK(manifest.value("version", -1) == kManifestVersion, path, ": version: expected ", kManifestVersion,
+            ", found ", manifest.contains("version") ? manifest["version"].dump() : std::string("none"));
+  return manifest;
+}
+
 // Writes DIR/manifest.json, or checks that the one there describes the same dataset.
 void check_or_write_manifest(const std::string& dir, const json& manifest) {
-  const std::string path = (fs::path(dir) / "manifest.json").string();
+  const std::string path = manifest_path(dir);
   std::error_code error;
   if (fs::exists(path, error)) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream text;
-    text << in.rdbuf();
-    json existing;
-    try {
-      existing = json::parse(text.str());
-    } catch (const json::exception& e) {
-      fail(path, ": not valid JSON (", e.what(), "); expected the manifest of an amt dataset build");
-    }
-    AMT_CHECK(existing.is_object() && existing.value("format", "") == kManifestFormat, path, ": format: expected '",
-              kManifestFormat, "', found ", existing.is_object() && existing.contains("format") ? existing["format"].dump()
-                                                                                              : std::string("none"));
-    AMT_CHECK(existing.value("version", -1) == kManifestVersion, path, ": version: expected ", kManifestVersion,
-              ", found ", existing.contains("version") ? existing["version"].dump() : std::string("none"));
+    const json existing = read_manifest_file(path);
     // Settings first: they explain the other differences (seeds, clip lists).
     std::string difference;
     for (const char* key : {"settings", "bvh_files", "clips", "characters"}) {
@@ -371,6 +382,45 @@ DatasetPlan plan_dataset(const DatasetBuildOptions& options, std::vector<MotionC
                                     derive_seed(options.seed, kClipSplitStream));
   plan.clips = std::move(clips);
   return plan;
+}
+
+BuildManifest read_build_manifest(const std::string& dir) {
+  const std::string path = manifest_path(dir);
+  const json manifest = read_manifest_file(path);
+  const auto array = [&](const char* key) -> const json& {
+    AMT_CHECK(manifest.contains(key) && manifest[key].is_array(), path, ": ", key, ": expected an array");
+    return manifest[key];
+  };
+  // Entry `i` of array `key` is an object whose `field` satisfies `ok`.
+  const auto check = [&](const char* key, size_t i, const json& entry, const char* field, auto ok,
+                         const char* expected) {
+    const bool has = entry.is_object() && entry.contains(field);
+    AMT_CHECK(has && ok(entry[field]), path, ": ", key, ".", i, ".", field, ": expected ", expected, ", found ",
+              has ? entry[field].dump() : "none");
+  };
+  const auto is_seed = [](const json& v) { return v.is_number_unsigned(); };
+  BuildManifest result;
+  const json& characters = array("characters");
+  for (size_t i = 0; i < characters.size(); ++i) {
+    const json& c = characters[i];
+    // The name becomes a file name in DIR: it must not lead out of the folder.
+    check("characters", i, c, "name", [](const json& v) {
+      return v.is_string() && !v.get<std::string>().empty() && v.get<std::string>().find('/') == std::string::npos &&
+             v.get<std::string>() != "." && v.get<std::string>() != "..";
+    }, "a character name without '/'");
+    check("characters", i, c, "split", [](const json& v) { return v == "train" || v == "test"; }, "train or test");
+    check("characters", i, c, "body_seed", is_seed, "a seed");
+    check("characters", i, c, "apparel_seed", is_seed, "a seed");
+    result.characters.push_back({c["name"].get<std::string>(), c["body_seed"].get<uint64_t>(),
+                                 c["apparel_seed"].get<uint64_t>(), c["split"].get<std::string>()});
+  }
+  const json& clips = array("clips");
+  for (size_t k = 0; k < clips.size(); ++k) {
+    check("clips", k, clips[k], "frames", [](const json& v) { return v.is_number_unsigned(); }, "a frame count");
+    result.frames_per_character += clips[k]["frames"].get<int64_t>();
+  }
+  result.clips_per_character = static_cast<int>(clips.size());
+  return result;
 }
 
 std::string shard_path(const std::string& dir, const std::string& character) {

@@ -130,6 +130,20 @@ DatasetPlan plan_dataset(const DatasetBuildOptions& options, std::vector<MotionC
 /// held_out = n >= 2 ? max(1, round(n / every)) : 0. Deterministic on every platform.
 std::vector<bool> held_out_set(int n, int every, uint64_t seed);
 
+/// What DIR/manifest.json says a complete build holds: one shard per character (shard_path(DIR, name)), each with
+/// every library clip.
+struct BuildManifest {
+  /// The characters in order, with their seeds and splits.
+  std::vector<PlannedCharacter> characters;
+  /// Library clips of every character's shard, and their frames summed.
+  int clips_per_character = 0;
+  int64_t frames_per_character = 0;
+};
+
+/// Reads DIR/manifest.json (as amt dataset info does). Throws amt::Error naming the file and the field when it cannot
+/// be read, is not JSON, has another format or version, or a field read here is missing or out of range.
+BuildManifest read_build_manifest(const std::string& dir);
+
 /// File paths of a character's shard, build record and part file in `dir`.
 std::string shard_path(const std::string& dir, const std::string& character);
 std::string record_path(const std::string& dir, const std::string& character);

@@ -1,7 +1,10 @@
 #pragma once
-// `amt dataset info`: a human-readable summary of a dataset file (DESIGN.md sections 4 and 7).
+// `amt dataset info`: a human-readable summary of a dataset file or of a dataset folder
+// (DESIGN.md sections 4 and 7).
+#include <cstdint>
 #include <ostream>
 #include <string>
+#include <vector>
 
 namespace amt {
 
@@ -12,5 +15,72 @@ namespace amt {
 /// is checked as it is listed (DatasetReader::character_summary and clip_info); bad input throws
 /// amt::Error.
 void print_dataset_info(const std::string& path, std::ostream& out);
+
+/// Train and test counts of characters or clips.
+struct SplitCounts {
+  int train = 0;
+  int test = 0;
+  void add(const std::string& split) { (split == "train" ? train : test) += 1; }
+  int total() const { return train + test; }
+  /// "(train 3, test 1)".
+  std::string text() const { return "(train " + std::to_string(train) + ", test " + std::to_string(test) + ")"; }
+};
+
+/// What became of one shard of a dataset folder.
+enum class ShardStatus {
+  /// Read and counted.
+  kRead,
+  /// Named by the manifest, not in the folder.
+  kMissing,
+  /// Cannot be read (damaged, truncated, not a dataset file), or does not hold what the manifest says.
+  kDamaged,
+  /// Readable, but not named by the manifest.
+  kUnexpected,
+};
+
+/// "ok", "missing", "damaged" or "not in manifest".
+const char* shard_status_name(ShardStatus status);
+
+/// One shard of a dataset folder and what reading it found.
+struct ShardSummary {
+  std::string path;
+  ShardStatus status = ShardStatus::kRead;
+  /// Unless the shard was read: why, one line naming the file (for a damaged shard the reader's error).
+  std::string problem;
+  /// Size on disk in bytes; 0 when missing.
+  uint64_t bytes = 0;
+  /// What the shard holds (zero unless it was read).
+  SplitCounts characters, clips;
+  int64_t frames = 0;
+};
+
+/// A dataset folder written by amt dataset build: every shard its manifest.json names, each opened and every
+/// character and clip checked as print_dataset_info does, plus any other *.h5 in the folder (a problem: training
+/// would read it, the manifest does not know it). A folder without manifest.json is summarised from its *.h5 files;
+/// then missing shards cannot be told.
+struct DatasetFolderSummary {
+  std::string dir;
+  bool has_manifest = false;
+  /// What the manifest expects: characters (one shard each) and clips per character.
+  int expected_characters = 0;
+  int expected_clips_per_character = 0;
+  /// The shards in manifest order, then the others sorted by name.
+  std::vector<ShardSummary> shards;
+  /// Totals over the shards that were read; bytes over every shard present.
+  SplitCounts characters, clips;
+  int64_t frames = 0;
+  uint64_t bytes = 0;
+
+  /// Shards not read: missing, damaged or unexpected.
+  int num_problems() const;
+};
+
+/// Summarises the dataset folder `dir`. A damaged shard is reported in its ShardSummary, not thrown; throws amt::Error
+/// when `dir` is not a folder, its manifest.json cannot be read, or it has neither a manifest nor a *.h5 file.
+DatasetFolderSummary summarise_dataset_folder(const std::string& dir);
+
+/// Prints the folder summary: what the manifest expects, one row per shard (splits, clips, frames, size, status),
+/// the totals, and every problem on a line of its own.
+void print_dataset_folder_summary(const DatasetFolderSummary& summary, std::ostream& out);
 
 }  // namespace amt

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # The main job on bundled defaults: installs the dependencies, builds `amt`, and animates a stylized
 # character (generated on the fly by the dataset builder: a procedural body dressed with apparel,
-# seed 7, about 8000 vertices) with a CMU clip from the shared data, using the shipped model in
+# seed 7, about 8000 vertices) with a CMU clip from data/mocap/cmu, using the shipped model in
 # models/pretrained/. Writes out/demo.glb (opens in three.js, Blender or any glTF viewer) and prints
 # the summary: frames, time per frame, penetration share before and after resolution.
 #
-# Environment: AMT_BUILD_DIR (default build), AMT_SHARED_DATA_DIR (default ../shared/data),
+# Environment: AMT_BUILD_DIR (default build), AMT_JOBS (build jobs, default: all cores),
 # AMT_MODEL (default models/pretrained), AMT_DEMO_CLIP (default 02_01.bvh, a walk), AMT_THREADS (2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,17 +13,16 @@ cd "$(dirname "$0")/.."
 ./scripts/setup.sh
 build_dir=${AMT_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build_dir" -j"$(nproc)" --target amt
+cmake --build "$build_dir" -j"${AMT_JOBS:-$(nproc)}" --target amt
 
 amt="$build_dir/app/amt"
-shared=${AMT_SHARED_DATA_DIR:-../shared/data}
-clip="$shared/mocap/cmu/${AMT_DEMO_CLIP:-02_01.bvh}"
+clip="data/mocap/cmu/${AMT_DEMO_CLIP:-02_01.bvh}"
 model=${AMT_MODEL:-models/pretrained}
 threads=${AMT_THREADS:-2}
 export OMP_WAIT_POLICY=passive
 
 if [ ! -f "$clip" ]; then
-  echo "demo: the CMU clip $clip is missing: set AMT_SHARED_DATA_DIR to the shared data folder" >&2
+  echo "demo: the CMU clip $clip is missing: set AMT_DEMO_CLIP to one of data/mocap/cmu/*.bvh" >&2
   exit 1
 fi
 if [ ! -f "$model/refiner.ckpt" ]; then

@@ -13,8 +13,7 @@ targets=("$@")
 
 out=build-fuzz
 mkdir -p "$out/generated/amt"
-printf '#pragma once\n#define AMT_VERSION "fuzz"\n#define AMT_SHARED_DATA_DIR "%s"\n' "$(realpath ../shared/data 2>/dev/null || echo .)" \
-  > "$out/generated/amt/version.h"
+printf '#pragma once\n#define AMT_VERSION "fuzz"\n' > "$out/generated/amt/version.h"
 flags=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I"$out/generated" -I/usr/include/eigen3)
 core=(data_tools/mesh.cpp data_tools/skeleton.cpp data_tools/motion.cpp data_tools/lbs.cpp)
 
@@ -30,14 +29,14 @@ for target in "${targets[@]}"; do
     pmx)
       sources=(data_tools/pmx_import.cpp "${core[@]}")
       libs=()
-      cp ../shared/data/pmx/*.pmx "$dir/corpus/" 2>/dev/null || true
+      cp data/pmx/*.pmx "$dir/corpus/"
       ;;
     gltf)
       # tinygltf compiled into the target, so the fuzzer instruments it too (Debian has no stb_image).
       sources=(-DAMT_FUZZ_TINYGLTF_FROM_SOURCE -DTINYGLTF_NO_STB_IMAGE -DTINYGLTF_NO_STB_IMAGE_WRITE
                data_tools/gltf_import.cpp "${core[@]}")
       libs=()
-      cp ../shared/data/characters/*.glb "$dir/corpus/" 2>/dev/null || true
+      cp data/characters/*.glb "$dir/corpus/"
       cp tests/assets/gltf/* "$dir/corpus/" 2>/dev/null || true
       ;;
     *)

@@ -1,6 +1,7 @@
 #pragma once
-// Helpers shared by the test suites: scratch folders, error capture and the glTF validator.
+// Helpers shared by the test suites: scratch folders, error capture, shell commands and the glTF validator.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -40,6 +41,26 @@ std::string error_of(F&& f) {
     return e.what();
   }
   return "";
+}
+
+/// What a shell command printed and its exit status (-1 when a signal ended it).
+struct CommandResult {
+  int status = -1;
+  std::string out, err;
+};
+
+/// Runs `command` with sh as a user runs it, capturing stdout and stderr.
+inline CommandResult run_command(const std::string& command) {
+  const std::filesystem::path dir = temp_dir("run_command");
+  const std::string out = (dir / "out.txt").string(), err = (dir / "err.txt").string();
+  const int status = std::system(("(" + command + ") >'" + out + "' 2>'" + err + "'").c_str());
+  const auto read = [](const std::string& path) {
+    std::ifstream in(path);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, read(out), read(err)};
 }
 
 /// Runs the Khronos glTF validator (tools/gltf-validator/validate.mjs, installed by

@@ -12,7 +12,6 @@
 #include <iostream>
 #include <sstream>
 
-#include "amt/version.h"
 #include "data_tools/error.h"
 #include "data_tools/retarget.h"
 
@@ -23,12 +22,12 @@ std::string asset(const std::string& name) {
   return std::string(AMT_TEST_ASSETS_DIR) + "/bvh/" + name;
 }
 std::string cmu(const std::string& name) {
-  return std::string(AMT_SHARED_DATA_DIR) + "/mocap/cmu/" + name;
+  return std::string(AMT_ASSET_DIR) + "/mocap/cmu/" + name;
 }
 
 std::vector<std::string> cmu_files() {
   std::vector<std::string> files;
-  for (const auto& entry : std::filesystem::directory_iterator(std::string(AMT_SHARED_DATA_DIR) + "/mocap/cmu")) {
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(AMT_ASSET_DIR) + "/mocap/cmu")) {
     if (entry.path().extension() == ".bvh") files.push_back(entry.path().string());
   }
   std::sort(files.begin(), files.end());

@@ -1,5 +1,5 @@
-// Tests of data_tools/dataset_builder.h on a tiny dataset: 2 characters of about 1000 vertices x 3 procedural clips
-// of 10 frames, settling 0.1 s, committing every 2 clips.
+// Tests of data_tools/dataset_builder.h on a tiny dataset (tests/data_tools/tiny_build.h): 2 characters of about
+// 1000 vertices x 3 procedural clips of 10 frames, settling 0.1 s, committing every 2 clips.
 #include "data_tools/dataset_builder.h"
 
 #include <gtest/gtest.h>
@@ -13,31 +13,20 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "data_tools/dataset_file.h"
+#include "tests/data_tools/tiny_build.h"
 #include "tests/test_support.h"
 
 namespace amt {
 namespace {
 
 using test::error_of;
+using test::tiny_build_options;
 
 namespace fs = std::filesystem;
-
-DatasetBuildOptions tiny_options(const fs::path& out) {
-  DatasetBuildOptions o;
-  o.out = out.string();
-  o.seed = 11;
-  o.characters = 2;
-  o.procedural = 3;
-  o.frames = 10;
-  o.vertices = 1000;
-  o.settle_seconds = 0.1f;
-  o.blend_seconds = 0.2f;
-  o.clips_per_commit = 2;
-  o.apparel.max_pieces = 2;
-  return o;
-}
 
 std::string bytes_of(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -70,7 +59,7 @@ class DatasetBuilder : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     reference_ = new fs::path(test::temp_dir("dataset_builder_reference"));
-    report_ = new DatasetBuildReport(build_dataset(tiny_options(*reference_)));
+    report_ = new DatasetBuildReport(build_dataset(tiny_build_options(*reference_)));
   }
   static void TearDownTestSuite() {
     delete reference_;
@@ -160,13 +149,13 @@ TEST_F(DatasetBuilder, SameSeedGivesByteIdenticalShards) {
   const fs::path again = test::temp_dir("dataset_builder_again");
   // A second later, so that anything time-dependent (HDF5 object modification times) would show.
   std::this_thread::sleep_for(std::chrono::milliseconds(1100));
-  build_dataset(tiny_options(again));
+  build_dataset(tiny_build_options(again));
   EXPECT_EQ(folder_bytes(again), folder_bytes(*reference_));
 }
 
 TEST_F(DatasetBuilder, TwoShardProcessesBuildTheSameDataset) {
   const fs::path dir = test::temp_dir("dataset_builder_shards");
-  DatasetBuildOptions o = tiny_options(dir);
+  DatasetBuildOptions o = tiny_build_options(dir);
   o.shard = parse_shard("1/2");
   const DatasetBuildReport second = build_dataset(o);
   EXPECT_EQ(second.characters_total, 1);
@@ -179,7 +168,7 @@ TEST_F(DatasetBuilder, TwoShardProcessesBuildTheSameDataset) {
 
 TEST_F(DatasetBuilder, InterruptedBuildResumesWithoutRedoingCommittedClips) {
   const fs::path dir = test::temp_dir("dataset_builder_resume");
-  DatasetBuildOptions o = tiny_options(dir);
+  DatasetBuildOptions o = tiny_build_options(dir);
   o.stop_after_clips = 3;  // clips 0, 1 committed; clip 2 simulated but lost, as with a kill
   const DatasetBuildReport first = build_dataset(o);
   EXPECT_TRUE(first.interrupted);
@@ -207,15 +196,51 @@ TEST_F(DatasetBuilder, RejectsAFolderBuiltWithOtherSettings) {
   const fs::path dir = test::temp_dir("dataset_builder_other");
   fs::copy(*reference_, dir);
   const auto before = folder_bytes(dir);
-  DatasetBuildOptions o = tiny_options(dir);
+  DatasetBuildOptions o = tiny_build_options(dir);
   o.seed = 12;
   const std::string message = error_of([&] { build_dataset(o); });
   EXPECT_NE(message.find("built with other settings (settings.seed: 12 here, 11 in the folder)"), std::string::npos)
       << message;
-  o = tiny_options(dir);
+  o = tiny_build_options(dir);
   o.frames = 11;
   EXPECT_NE(error_of([&] { build_dataset(o); }).find("settings.frames"), std::string::npos);
   EXPECT_EQ(folder_bytes(dir), before);
+}
+
+TEST_F(DatasetBuilder, ManifestReadsBackThePlan) {
+  const BuildManifest manifest = read_build_manifest(reference_->string());
+  ASSERT_EQ(manifest.characters.size(), 2u);
+  EXPECT_EQ(manifest.characters[0].name, "character-0000");
+  EXPECT_EQ(manifest.characters[1].name, "character-0001");
+  // Two characters: one held out (held_out_set), with different seeds.
+  EXPECT_NE(manifest.characters[0].split, manifest.characters[1].split);
+  EXPECT_NE(manifest.characters[0].body_seed, manifest.characters[1].body_seed);
+  EXPECT_EQ(manifest.clips_per_character, 3);
+  EXPECT_EQ(manifest.frames_per_character, 30);
+}
+
+TEST_F(DatasetBuilder, DamagedManifestGivesOneLineErrors) {
+  const fs::path dir = test::temp_dir("dataset_builder_bad_manifest");
+  const std::string path = (dir / "manifest.json").string();
+  const std::string head = R"({"format": "amt-dataset-build", "version": 1, )";
+  const std::string character = R"("split": "train", "body_seed": 1, "apparel_seed": 2)";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"{", "not valid JSON"},
+      {R"({"format": "amt-dataset", "version": 1})", "format: expected 'amt-dataset-build', found \"amt-dataset\""},
+      {head + R"("clips": []})", "characters: expected an array"},
+      {head + R"("characters": [{"name": "../x", )" + character + R"(}], "clips": []})",
+       "characters.0.name: expected a character name without '/', found \"../x\""},
+      {head + R"("characters": [{"name": "c", "split": "dev", "body_seed": 1, "apparel_seed": 2}], "clips": []})",
+       "characters.0.split: expected train or test"},
+      {head + R"("characters": [{"name": "c", )" + character + R"(}], "clips": [{"frames": -3}]})",
+       "clips.0.frames: expected a frame count, found -3"},
+  };
+  for (const auto& [text, expected] : cases) {
+    std::ofstream(path) << text;
+    const std::string message = error_of([&] { read_build_manifest(dir.string()); });
+    EXPECT_NE(message.find(path + ": " + expected), std::string::npos) << text << ": " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
 }
 
 TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) {
@@ -238,13 +263,44 @@ TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) 
       {"no characters", [](DatasetBuildOptions& o) { o.characters = 0; }, "--characters"},
   };
   for (const Case& c : cases) {
-    DatasetBuildOptions o = tiny_options(dir);
+    DatasetBuildOptions o = tiny_build_options(dir);
     c.change(o);
     const std::string message = error_of([&] { build_dataset(o); });
     EXPECT_NE(message.find(c.expected), std::string::npos) << c.what << ": " << message;
     EXPECT_EQ(message.find('\n'), std::string::npos) << c.what;
     EXPECT_EQ(folder_bytes(dir), before) << c.what;
   }
+}
+
+// The command's default motions are found when it runs (app/repository.h), not at a path compiled in.
+TEST(DatasetBuildCommand, DefaultMotionsAreFoundAboveTheProgramOrInTheCurrentFolder) {
+  const fs::path elsewhere = fs::canonical(test::temp_dir("build_command_elsewhere"));
+  const std::string in_elsewhere = "cd '" + elsewhere.string() + "' && ";
+  // The checkout's program, run from another folder, finds the checkout's data/ (and models/).
+  test::CommandResult help = test::run_command(in_elsewhere + "'" + AMT_BINARY + "' dataset build --help");
+  EXPECT_EQ(help.status, 0) << help.err;
+  EXPECT_NE(help.out.find("(here: " AMT_ASSET_DIR "/mocap/cmu)"), std::string::npos) << help.out;
+  help = test::run_command(in_elsewhere + "'" + AMT_BINARY + "' animate --help");
+  EXPECT_NE(help.out.find("(here: " + fs::path(AMT_ASSET_DIR).parent_path().string() + "/models/pretrained)"),
+            std::string::npos)
+      << help.out;
+
+  // A copy of the program outside any checkout has no default: it says what to pass, and writes nothing.
+  const fs::path program = fs::canonical(test::temp_dir("build_command_copy")) / "amt";
+  fs::copy_file(AMT_BINARY, program);
+  fs::permissions(program, fs::perms::owner_all);
+  const test::CommandResult failed =
+      test::run_command(in_elsewhere + "'" + program.string() + "' dataset build --out built --threads 1");
+  EXPECT_EQ(failed.status, 1);
+  EXPECT_EQ(failed.err, "amt: error: --motions: no default: data/mocap/cmu is neither above the amt program (" +
+                            program.string() + ") nor in the current folder (" + elsewhere.string() +
+                            "); pass --motions FOLDER (BVH files), or --motions \"\" for procedural motions only\n");
+  EXPECT_FALSE(fs::exists(elsewhere / "built"));
+  // Run from a folder that has data/mocap/cmu, the copy takes that one.
+  fs::create_directories(elsewhere / "data" / "mocap" / "cmu");
+  help = test::run_command(in_elsewhere + "'" + program.string() + "' dataset build --help");
+  EXPECT_NE(help.out.find("(here: " + (elsewhere / "data" / "mocap" / "cmu").string() + ")"), std::string::npos)
+      << help.out;
 }
 
 }  // namespace

@@ -15,7 +15,6 @@
 #include <iostream>
 #include <sstream>
 
-#include "amt/version.h"
 #include "data_tools/error.h"
 #include "data_tools/gltf_import.h"
 #include "data_tools/lbs.h"
@@ -201,7 +200,7 @@ TEST(GltfExport, RiggedRoundTripAndValidator) {
 }
 
 TEST(GltfExport, FoxReexportedKeepsItsWalk) {
-  const GltfAsset fox_asset = read_gltf(std::string(AMT_SHARED_DATA_DIR) + "/characters/Fox.glb");
+  const GltfAsset fox_asset = read_gltf(std::string(AMT_ASSET_DIR) + "/characters/Fox.glb");
   const GltfCharacter fox = gltf_character(fox_asset);
   const GltfMotion walk = gltf_motion(fox_asset, fox, "Walk", 30.0f);
   const auto path = temp_dir("fox") / "fox_walk.glb";

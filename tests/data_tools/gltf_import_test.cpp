@@ -16,7 +16,6 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "amt/version.h"
 #include "data_tools/error.h"
 #include "data_tools/lbs.h"
 #include "data_tools/motion.h"
@@ -27,7 +26,7 @@ namespace {
 using test::error_of;
 using test::temp_dir;
 
-const std::string kFox = std::string(AMT_SHARED_DATA_DIR) + "/characters/Fox.glb";
+const std::string kFox = std::string(AMT_ASSET_DIR) + "/characters/Fox.glb";
 
 std::vector<uint8_t> read_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <fstream>
 
-#include "amt/version.h"
 #include "data_tools/procedural_motion.h"
 #include "data_tools/retarget.h"
 #include "tests/test_support.h"
@@ -171,7 +170,7 @@ TEST(MotionLibrary, ClipOnCharacterStartsAtTheCharactersRestPose) {
 
 TEST(MotionLibrary, BuildsClipsFromBvhFilesAndProceduralMotions) {
   const auto dir = test::temp_dir("motion_library_bvh");
-  std::filesystem::copy_file(AMT_SHARED_DATA_DIR "/mocap/cmu/09_03.bvh", dir / "09_03.bvh");
+  std::filesystem::copy_file(AMT_ASSET_DIR "/mocap/cmu/09_03.bvh", dir / "09_03.bvh");
   MotionLibraryOptions options;
   options.bvh_folder = dir.string();
   options.procedural = 7;

@@ -15,7 +15,6 @@
 #include <random>
 #include <sstream>
 
-#include "amt/version.h"
 #include "data_tools/error.h"
 #include "data_tools/gltf_import.h"
 #include "data_tools/shapes.h"
@@ -66,7 +65,7 @@ TEST(ObjIo, RoundTripIsBitExact) {
 }
 
 TEST(ObjIo, FoxRestMeshRoundTrip) {
-  const GltfCharacter fox = gltf_character(read_gltf(std::string(AMT_SHARED_DATA_DIR) + "/characters/Fox.glb"));
+  const GltfCharacter fox = gltf_character(read_gltf(std::string(AMT_ASSET_DIR) + "/characters/Fox.glb"));
   const std::string path = (temp_dir("fox") / "fox.obj").string();
   write_obj(path, fox.mesh);
   const TriMesh back = read_obj(path);

@@ -15,7 +15,6 @@
 #include <string>
 #include <vector>
 
-#include "amt/version.h"
 #include "data_tools/error.h"
 #include "data_tools/mesh.h"
 
@@ -72,7 +71,7 @@ std::string parse_error(const std::vector<uint8_t>& bytes) {
 }
 
 std::string fixture(const std::string& name) {
-  return std::string(AMT_SHARED_DATA_DIR) + "/pmx/" + name;
+  return std::string(AMT_ASSET_DIR) + "/pmx/" + name;
 }
 
 // === The babylon-mmd fixtures (2596 bytes each; offsets read off `xxd`)
@@ -1527,7 +1526,7 @@ void expect_read_error(const std::string& path, const std::string& expected) {
 
 TEST(PmxErrors, MissingFileAndDirectory) {
   expect_read_error("/nonexistent/model.pmx", "/nonexistent/model.pmx: cannot open: no such file");
-  expect_read_error(AMT_SHARED_DATA_DIR, std::string(AMT_SHARED_DATA_DIR) + ": cannot read: not a regular file");
+  expect_read_error(AMT_ASSET_DIR, std::string(AMT_ASSET_DIR) + ": cannot read: not a regular file");
 }
 
 }  // namespace

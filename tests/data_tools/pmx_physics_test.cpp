@@ -6,7 +6,6 @@
 #include <cmath>
 #include <string>
 
-#include "amt/version.h"  // AMT_SHARED_DATA_DIR, the shared assets beside the repository
 #include "data_tools/error.h"
 
 namespace amt {
@@ -15,7 +14,7 @@ namespace {
 constexpr float kDegree = 3.14159265358979f / 180.0f;
 
 std::string fixture(const std::string& name) {
-  return std::string(AMT_SHARED_DATA_DIR) + "/pmx/" + name;
+  return std::string(AMT_ASSET_DIR) + "/pmx/" + name;
 }
 
 // Bullet's 6-DOF angles (x, y, z) of a relative rotation R_rel = A^T B (joint frame on B seen from the one on A):

@@ -21,7 +21,7 @@
 //
 // Run, seeded with the Fox and the test assets:
 //
-//   mkdir -p build-gltf/gltf_corpus && cp ../shared/data/characters/Fox.glb tests/assets/gltf/*.gl* \
+//   mkdir -p build-gltf/gltf_corpus && cp data/characters/Fox.glb tests/assets/gltf/*.gl* \
 //     build-gltf/gltf_corpus/
 //   build-gltf/gltf_fuzz -max_len=200000 -max_total_time=120 -rss_limit_mb=2048 build-gltf/gltf_corpus
 #include <algorithm>

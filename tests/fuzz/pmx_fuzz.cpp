@@ -2,10 +2,10 @@
 // anything else (a crash, a sanitizer report, another exception, an allocation past libFuzzer's limit) is a bug.
 // Parsed models also go through the conversion to amt's frame, the mesh and the skinning weights.
 //
-// Build and run from the repository root (seeded with the shared fixtures):
+// Build and run from the repository root (seeded with the PMX fixtures in data/pmx):
 //   clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I/usr/include/eigen3 \
 //       tests/fuzz/pmx_fuzz.cpp data_tools/pmx_import.cpp -o /tmp/pmx_fuzz
-//   mkdir -p /tmp/pmx_corpus && cp ../shared/data/pmx/*.pmx /tmp/pmx_corpus/
+//   mkdir -p /tmp/pmx_corpus && cp data/pmx/*.pmx /tmp/pmx_corpus/
 //   /tmp/pmx_fuzz -max_total_time=120 -max_len=8192 /tmp/pmx_corpus
 #include <cstddef>
 #include <cstdint>
