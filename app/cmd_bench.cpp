@@ -21,6 +21,7 @@
 
 #include "amt/version.h"
 #include "app/commands.h"
+#include "app/repository.h"
 #include "data_tools/apparel.h"
 #include "data_tools/body_generator.h"
 #include "data_tools/error.h"
@@ -45,7 +46,7 @@ struct BenchOptions {
   std::vector<std::string> suites = {"lbs", "geodesic"};
   std::vector<int> runtime_sizes = {5000, 20000, 50000};
   std::vector<int> runtime_threads = {1, 2};
-  std::string model = AMT_SOURCE_DIR "/models/pretrained";
+  std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
 };
 
 // Median wall time in seconds of `repeats` calls of fn, after one warm-up call.
@@ -131,8 +132,9 @@ std::pair<double, double> median_p95(std::vector<double>& v) {
 
 // The shipped networks when `dir` holds them, else freshly initialised ones of the default options
 // (seeded): the per-frame cost depends on the architecture, not on the weights.
-ModelBundle bench_bundle(const std::string& dir, std::string& what) {
-  if (std::filesystem::exists(std::filesystem::path(dir) / kRefinerCheckpoint)) {
+ModelBundle bench_bundle(const std::string& given, std::string& what) {
+  const std::string dir = !given.empty() ? given : find_repository_folder("models/pretrained");
+  if (!dir.empty() && std::filesystem::exists(std::filesystem::path(dir) / kRefinerCheckpoint)) {
     what = "shipped model " + dir;
     return load_model_bundle(dir);
   }
@@ -242,8 +244,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_option("--runtime-threads", options->runtime_threads, "Thread counts of the runtime suite")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
-  bench->add_option("--model", options->model, "Model folder of the runtime suite (fresh networks when absent)")
-      ->capture_default_str();
+  bench->add_option("--model", options->model,
+                    "Model folder of the runtime suite (fresh networks when absent). " +
+                        repository_default_help("models/pretrained"));
   add_threads_option(*bench);
   bench->callback([options] {
     std::printf("amt bench: %d threads\n", omp_get_max_threads());

@@ -8,6 +8,7 @@
 
 #include "amt/version.h"
 #include "app/commands.h"
+#include "app/repository.h"
 #include "data_tools/error.h"
 #include "train/evaluate.h"
 #include "train/report.h"
@@ -18,7 +19,7 @@ namespace {
 
 struct EvalCommand {
   std::vector<std::string> data;
-  std::string model = AMT_SOURCE_DIR "/models/pretrained";
+  std::string model;  // empty: the repository's models/pretrained (app/repository.h)
   std::string out;
   std::string protocol = "both";
   std::string predictions;
@@ -53,8 +54,11 @@ void run(const EvalCommand& command) {
   if (!command.predictions.empty()) {
     result = evaluate_predictions(shards, command.predictions, options);
   } else {
-    const ModelBundle bundle = load_model_bundle(command.model);
-    report.model_dir = command.model;
+    const std::string model = !command.model.empty() ? command.model
+                                                     : repository_default("models/pretrained", "--model",
+                                                                          "FOLDER (trained model)");
+    const ModelBundle bundle = load_model_bundle(model);
+    report.model_dir = model;
     result = evaluate_model(bundle, shards, options);
   }
   print_summary(result, write_report(result, report));
@@ -69,7 +73,8 @@ void add_eval_command(CLI::App& app) {
   auto command = std::make_shared<EvalCommand>();
   EvaluateOptions& o = command->options;
   eval->add_option("--data", command->data, "Dataset shards: *.h5 files or folders of them")->required();
-  eval->add_option("--model", command->model, "Model folder with segmenter/skinning/apparel/refiner.ckpt")
+  eval->add_option("--model", command->model, "Model folder with segmenter/skinning/apparel/refiner.ckpt. " +
+                                                 repository_default_help("models/pretrained"))
       ->capture_default_str();
   eval->add_option("--out", command->out, "Output folder for report.md, metrics.json and the plots")->required();
   eval->add_option("--protocol", command->protocol,
@@ -92,7 +97,7 @@ void add_eval_command(CLI::App& app) {
   eval->callback([command] {
     std::string line = "amt eval --data";
     for (const std::string& d : command->data) line += " " + d;
-    if (command->predictions.empty()) line += " --model " + command->model;
+    if (command->predictions.empty() && !command->model.empty()) line += " --model " + command->model;
     else line += " --predictions " + command->predictions;
     line += " --out " + command->out + " --protocol " + command->protocol;
     if (command->options.max_clips > 0) line += " --max-clips " + std::to_string(command->options.max_clips);
