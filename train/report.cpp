@@ -181,8 +181,10 @@ void plot_rollout(const EvaluationResult& result, const ReportOptions& options, 
     }
     const std::string data_path = (fs::path(options.out_dir) / ("rollout_" + std::to_string(i) + ".dat")).string();
     write_file_atomically(data_path, data.str());
-    body << (i ? ", " : "") << "'" << data_path << "' using 1:2 with lines lw 2 title '" << method_label(curves[i]->method)
-         << ", " << curves[i]->subset << "'";
+    std::string label = method_label(curves[i]->method);  // '_' would be a subscript in gnuplot's enhanced text
+    std::replace(label.begin(), label.end(), '_', ' ');
+    body << (i ? ", " : "") << "'" << data_path << "' using 1:2 with lines lw 2 title '" << label << ", "
+         << curves[i]->subset << "'";
   }
   body << "\n";
   draw(options.out_dir, "rollout_pmd_a", body.str(), files);
