@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <tuple>
 
 #include "data_tools/dataset_file.h"
 #include "data_tools/lbs_torch.h"
@@ -34,6 +35,20 @@ struct MicroCharacter {
   CharacterData data;
   at::Tensor V, F, joints, mask;
 };
+
+// The first `frames` frames of the micro dataset's clip walk0: joint transforms (T, J, 3, 4) and
+// ground-truth vertices (T, N, 3).
+std::pair<at::Tensor, at::Tensor> read_walk(const std::string& path, int frames) {
+  DatasetReader reader(path);
+  const int J = reader.num_joints();
+  const Transforms transforms = reader.read_joint_transforms("walk0", 0, frames);
+  at::Tensor motion = at::empty({frames, J, 3, 4});
+  for (int i = 0; i < frames * J; ++i)
+    std::memcpy(motion.data_ptr<float>() + 12 * i, transforms[i].data(), 12 * sizeof(float));
+  const MatrixX3f gt = reader.read_vertices("walk0", 0, frames);
+  const int64_t N = gt.rows() / frames;
+  return {motion, at::from_blob(const_cast<float*>(gt.data()), {frames, N, 3}, at::kFloat).clone()};
+}
 
 MicroCharacter read_micro(const std::string& path) {
   DatasetReader reader(path);
@@ -155,15 +170,10 @@ TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
   options.apparel_mask = c.mask;
   const BoundCharacter b = bind_character(bundle, c.V, c.F, c.joints, options);
 
-  DatasetReader reader(data);
-  const int T = 10, J = 22;
-  const Transforms transforms = reader.read_joint_transforms("walk0", 0, T);
-  at::Tensor motion = at::empty({T, J, 3, 4});
-  for (int i = 0; i < T * J; ++i)
-    std::memcpy(motion.data_ptr<float>() + 12 * i, transforms[i].data(), 12 * sizeof(float));
-  const MatrixX3f gt = reader.read_vertices("walk0", 0, T);
+  const int T = 10;
   const int64_t N = c.V.size(0);
-  const at::Tensor V_gt = at::from_blob(const_cast<float*>(gt.data()), {T, N, 3}, at::kFloat).clone();
+  at::Tensor motion, V_gt;
+  std::tie(motion, V_gt) = read_walk(data, T);
   const at::Tensor history = V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
 
   PipelineStepper stepper(bundle, b, history);
@@ -220,15 +230,9 @@ TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
   EXPECT_EQ(b.apparel_frame_joints.sizes(), (at::IntArrayRef{b.num_apparel()}));
   EXPECT_EQ(b.apparel_rest_features.sizes(), (at::IntArrayRef{b.num_apparel(), kApparelRestChannels}));
 
-  DatasetReader reader(data);
-  const int T = 10, J = 22;
-  const Transforms transforms = reader.read_joint_transforms("walk0", 0, T);
-  at::Tensor motion = at::empty({T, J, 3, 4});
-  for (int i = 0; i < T * J; ++i)
-    std::memcpy(motion.data_ptr<float>() + 12 * i, transforms[i].data(), 12 * sizeof(float));
-  const MatrixX3f gt = reader.read_vertices("walk0", 0, T);
-  const int64_t N = c.V.size(0);
-  const at::Tensor V_gt = at::from_blob(const_cast<float*>(gt.data()), {T, N, 3}, at::kFloat).clone();
+  const int T = 10;
+  at::Tensor motion, V_gt;
+  std::tie(motion, V_gt) = read_walk(data, T);
   const at::Tensor history = V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
   const at::Tensor anchors =
       linear_blend_skinning(c.V.index_select(0, b.apparel_ids), b.apparel_anchor_weights, motion, c.joints);
