@@ -292,7 +292,7 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   const at::Tensor change = target_normalizer->denormalize(decoder_->forward(x));
   // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
   const at::Tensor d_last = H.narrow(2, 0, 3);
-  const at::Tensor d_t = (options.inertia == 0.0 ? d_last : d_last + options.inertia * H.narrow(2, 3, 3)) + change;
+  const at::Tensor d_t = rule_detail(d_last, d_last - H.narrow(2, 3, 3)) + change;
   const at::Tensor A_t = S.select(1, 3) + from_frame(R.select(1, 3), d_t);
   if (detail) *detail = unbatched ? d_t.squeeze(0) : d_t;
   return unbatched ? A_t.squeeze(0) : A_t;
