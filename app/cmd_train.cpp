@@ -143,6 +143,17 @@ void add_train_command(CLI::App& app) {
                    "Local apparel: share of windows rolled out from the rest pose at their clip's start")
       ->capture_default_str();
   train
+      ->add_option("--free-run", o.free_run,
+                   "Local apparel: at most this many frames rolled out without gradient before the unroll "
+                   "(pushforward; --window must hold 3 + this + the longest unroll)")
+      ->capture_default_str();
+  train
+      ->add_option("--apparel-loss", o.apparel_loss,
+                   "Local apparel: squared (squared error of the detail vectors) or distance (their mean "
+                   "Euclidean distance, PMD's measure)")
+      ->check(CLI::IsMember({"squared", "distance"}))
+      ->capture_default_str();
+  train
       ->add_option("--normalizer-samples", o.normalizer_samples,
                    "Local apparel: samples whose one-step windows set the normalisers of a fresh run")
       ->capture_default_str();

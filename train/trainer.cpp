@@ -55,6 +55,8 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["history_noise"] = o.history_noise;
   j["noise_gamma"] = o.noise_gamma;
   j["rest_start_fraction"] = o.rest_start_fraction;
+  j["free_run"] = o.free_run;
+  j["apparel_loss"] = o.apparel_loss;
   j["normalizer_samples"] = o.normalizer_samples;
   j["weights"] = {{"vertex", o.weights.vertex},
                   {"edge", o.weights.edge},
@@ -107,6 +109,11 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   if (j.contains("history_noise")) get(j, "history_noise", o.history_noise, "");
   if (j.contains("noise_gamma")) get(j, "noise_gamma", o.noise_gamma, "");
   if (j.contains("rest_start_fraction")) get(j, "rest_start_fraction", o.rest_start_fraction, "");
+  if (j.contains("free_run")) get(j, "free_run", o.free_run, "");
+  if (const auto loss = j.find("apparel_loss"); loss != j.end()) {
+    AMT_CHECK(loss->is_string(), path, ": config.apparel_loss: expected a string, found ", loss->dump());
+    o.apparel_loss = loss->get<std::string>();
+  }
   if (j.contains("normalizer_samples")) get(j, "normalizer_samples", o.normalizer_samples, "");
   const auto weights = j.find("weights");
   AMT_CHECK(weights != j.end() && weights->is_object(), path, ": config.weights: expected an object");
@@ -213,12 +220,23 @@ at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const Cha
   return linear_blend_skinning(A_rest, W, motion, c.joints);
 }
 
+// A seeded generator for the draws of one training window (noise, free-run length), a function of the
+// run's seed, the step and the sample, so that a resumed run draws the same.
+at::Generator window_generator(const TrainOptions& o, const TrainingSample& s, int64_t step, uint64_t stream) {
+  uint64_t seed = o.seed * 0x9E3779B97F4A7C15ull ^ static_cast<uint64_t>(step) * 0xBF58476D1CE4E5B9ull ^
+                  static_cast<uint64_t>(s.first_frame);
+  for (char ch : s.clip) seed = (seed ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+  return at::detail::createCPUGenerator(seed ^ stream * 0x94D049BB133111EBull);
+}
+
 // The local apparel module's loss on one sample at `step`: the curriculum's unroll length u, a rollout
 // of u frames from the window's 3 ground-truth states (the last one noised, the first target corrected:
-// add_history_noise), or, for a window at its clip's first frame, from the rest pose through the
-// motion's lead-in as a user's clip starts (the lead-in without gradient). Terms: the squared error of the predicted detail vectors in
-// units of the target normaliser's scale (so that a one-step run starts near 1) and the edge-length loss
-// (eq. 15). Validation uses the longest unroll and no noise.
+// add_history_noise), or, with --free-run, from the states the module itself reached after a prefix of
+// r frames rolled out without gradient (pushforward), or, for a window at its clip's first frame, from
+// the rest pose through the motion's lead-in as a user's clip starts (the lead-in without gradient).
+// Terms: the error of the predicted detail vectors in units of the target normaliser's scale (so that a
+// one-step run starts near 1), squared or as a distance (TrainOptions::apparel_loss), and the
+// edge-length loss (eq. 15). Validation uses the longest unroll, no noise and no prefix.
 std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const TrainingSample& s, int64_t step,
                                            bool validating, const TrainOptions& o) {
   const CharacterTensors& c = *s.character;
@@ -242,15 +260,28 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
     motion = at::cat({before.narrow(0, L, 3), s.joint_transforms.narrow(0, 0, u)}, 0);
     targets = A.narrow(0, 0, u);
   } else {
-    motion = s.joint_transforms.narrow(0, 0, 3 + u);
-    initial = A.narrow(0, 0, 3);
-    targets = A.narrow(0, 3, u);
-    if (!validating && o.history_noise > 0) {
-      // Seeded by the run and the sample, so that a resumed run draws the same noise.
-      uint64_t seed = o.seed * 0x9E3779B97F4A7C15ull ^ static_cast<uint64_t>(step) * 0xBF58476D1CE4E5B9ull ^
-                      static_cast<uint64_t>(s.first_frame);
-      for (char ch : s.clip) seed = (seed ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
-      at::Generator generator = at::detail::createCPUGenerator(seed);
+    const int64_t available = A.size(0) - 3 - u;
+    const int64_t r = validating || o.free_run <= 0 || available <= 0
+                          ? 0
+                          : at::randint(0, std::min<int64_t>(o.free_run, available) + 1, {1},
+                                        window_generator(o, s, step, 1), at::kLong)
+                                .item<int64_t>();
+    if (r > 0) {
+      // Frames 3 .. 3 + r - 1 on the module's own predictions; its history for frame 3 + r is then
+      // frames r .. r + 2 (ground truth where r < 3).
+      torch::NoGradGuard no_grad;
+      const at::Tensor prefix_motion = s.joint_transforms.narrow(0, 0, 3 + r);
+      const at::Tensor prefix = net->rollout(A.narrow(0, 0, 3), prefix_motion,
+                                             apparel_anchors(true, ground_truth_weights, c, prefix_motion),
+                                             c.apparel_graph);
+      initial = at::cat({A.narrow(0, 0, 3), prefix}, 0).narrow(0, r, 3).contiguous();
+    } else {
+      initial = A.narrow(0, 0, 3);
+    }
+    motion = s.joint_transforms.narrow(0, r, 3 + u);
+    targets = A.narrow(0, r + 3, u);
+    if (!validating && r == 0 && o.history_noise > 0) {
+      at::Generator generator = window_generator(o, s, step, 0);
       const at::Tensor noise = o.history_noise * at::randn({A.size(1), 3}, generator, at::kFloat);
       auto [noisy, first] = add_history_noise(initial, targets[0], noise, o.noise_gamma);
       initial = noisy;
@@ -260,7 +291,11 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
   const at::Tensor S = apparel_anchors(true, ground_truth_weights, c, motion);
   const at::Tensor predicted = net->rollout(initial, motion, S, c.apparel_graph);
   const at::Tensor scale2 = net->target_normalizer->scale.pow(2).sum();
-  const at::Tensor detail = (predicted - targets).pow(2).sum(-1).mean() / scale2;
+  const at::Tensor squared = (predicted - targets).pow(2).sum(-1);
+  // The distance's gradient at 0 is undefined: a floor far below any error that matters (1e-12 of
+  // the scale squared).
+  const at::Tensor detail = o.apparel_loss == "distance" ? (squared / scale2 + 1e-12).sqrt().mean()
+                                                          : squared.mean() / scale2;
   const at::Tensor edge = edge_length_loss(predicted, A_rest, c.apparel_edges);
   return {detail + o.weights.edge * edge, detail, edge};
 }
@@ -551,8 +586,12 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
                              (resumed.empty() ? o.networks.apparel_form == "local"
                                               : is_local_apparel_options(resumed[0].options_json));
   if (local_apparel) {
-    AMT_CHECK(o.window >= 3 + longest_unroll(o.unroll), "--window: expected >= ", 3 + longest_unroll(o.unroll),
-              " (3 history states and the longest unroll of --unroll ", o.unroll, "), found ", o.window);
+    AMT_CHECK(o.free_run >= 0, "--free-run: expected >= 0 frames, found ", o.free_run);
+    AMT_CHECK(o.window >= 3 + o.free_run + longest_unroll(o.unroll), "--window: expected >= ",
+              3 + o.free_run + longest_unroll(o.unroll), " (3 history states, --free-run ", o.free_run,
+              " and the longest unroll of --unroll ", o.unroll, "), found ", o.window);
+    AMT_CHECK(o.apparel_loss == "squared" || o.apparel_loss == "distance",
+              "--apparel-loss: expected squared or distance, found '", o.apparel_loss, "'");
     AMT_CHECK(o.history_noise >= 0 && o.noise_gamma >= 0 && o.noise_gamma <= 1, "--noise: expected a std >= 0 and ",
               "gamma in [0, 1], found ", o.history_noise, " and ", o.noise_gamma);
     AMT_CHECK(o.rest_start_fraction >= 0 && o.rest_start_fraction <= 1, "--rest-start: expected a share in [0, 1], ",

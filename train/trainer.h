@@ -70,6 +70,15 @@ struct TrainOptions {
   /// rest pose, as `amt animate` and the rollout protocol start (rest apparel history, the motion
   /// blended in over kDefaultLeadInFrames), the loss on the clip's frames.
   double rest_start_fraction = 0.2;
+  /// (run) Local apparel module: the pushforward prefix, at most this many frames rolled out on the
+  /// module's own predictions without gradient before the differentiable unroll (a seeded draw in
+  /// [0, free_run] per window), so that the loss also sees states the module drifted into, as whole-clip
+  /// rollouts reach them. The window must hold 3 + free_run + the longest unroll. 0: none.
+  int free_run = 0;
+  /// (run) Local apparel module: "squared" (the squared error of the detail vectors, in units of the
+  /// target normaliser's scale) or "distance" (the mean Euclidean distance per vertex and frame in the
+  /// same units, PMD's own measure: a window that went far off weighs linearly, not quadratically).
+  std::string apparel_loss = "squared";
   /// (run) Local apparel module: training samples whose one-step windows set the normalisers before
   /// the first step (a fresh run only; a resumed run has them in its checkpoint).
   int normalizer_samples = 200;

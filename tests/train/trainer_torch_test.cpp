@@ -280,6 +280,51 @@ TEST(LocalApparel, ShortRunLowersTheValidationLoss) {
               r.validation_losses.front(), r.validation_losses.back());
 }
 
+TEST(LocalApparel, FreeRunAndDistanceLossAreSeededResumeExactlyAndAreStored) {
+  // Windows of 10 frames: 3 states, a pushforward prefix of up to 5 frames, then up to 2 unrolled.
+  test::use_one_thread();
+  TrainOptions straight = tiny_options("free_run_straight");
+  straight.steps = 8;
+  straight.learning_rate = 1e-3;
+  straight.unroll = "1:0.5,2:1";
+  straight.lr_decay_steps = 8;  // the curriculum's horizon, the same for the split run
+  straight.free_run = 5;
+  straight.apparel_loss = "distance";
+  straight.rest_start_fraction = 0;
+  const TrainResult a = train_module(ModuleKind::kApparel, {split_dataset()}, straight);
+  ASSERT_EQ(a.losses.size(), 8u);
+  const std::string config = read_checkpoint_info(a.checkpoint, ModuleKind::kApparel).config_json;
+  EXPECT_NE(config.find("\"free_run\":5"), std::string::npos) << config;
+  EXPECT_NE(config.find("\"apparel_loss\":\"distance\""), std::string::npos) << config;
+  // The prefix and the loss change the run: the same seed without them gives other losses.
+  TrainOptions plain = straight;
+  plain.out_dir = (test_dir() / "free_run_plain").string();
+  plain.free_run = 0;
+  plain.apparel_loss = "squared";
+  const TrainResult p = train_module(ModuleKind::kApparel, {split_dataset()}, plain);
+  EXPECT_NE(p.losses, a.losses);
+  // 4 + 4 steps with a resume equal 8 straight (the prefix lengths are drawn from the run's seed).
+  TrainOptions first = straight;
+  first.out_dir = (test_dir() / "free_run_split").string();
+  first.steps = 4;
+  const TrainResult b1 = train_module(ModuleKind::kApparel, {split_dataset()}, first);
+  TrainOptions second = first;
+  second.steps = 8;
+  second.resume = b1.checkpoint;
+  second.free_run = 0;  // ignored: the run settings come from the checkpoint
+  second.apparel_loss = "squared";
+  const TrainResult b2 = train_module(ModuleKind::kApparel, {split_dataset()}, second);
+  std::vector<double> resumed = b1.losses;
+  resumed.insert(resumed.end(), b2.losses.begin(), b2.losses.end());
+  EXPECT_EQ(resumed, a.losses);
+  // A window too short for prefix and unroll is refused before any work, naming both.
+  TrainOptions tight = straight;
+  tight.out_dir = (test_dir() / "free_run_tight").string();
+  tight.free_run = 6;
+  const std::string error = error_of([&] { train_module(ModuleKind::kApparel, {split_dataset()}, tight); });
+  EXPECT_NE(error.find("--free-run 6"), std::string::npos) << error;
+}
+
 TEST(LocalApparel, NormalisersAreSetBeforeTheFirstStepAndKeptByTheCheckpoint) {
   test::use_one_thread();
   TrainOptions o = tiny_options("local_normalisers");
