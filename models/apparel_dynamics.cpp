@@ -10,8 +10,9 @@
 #include <queue>
 #include <string>
 
+#include "data_tools/error.h"
 #include "data_tools/geodesic.h"
-
+#include "models/apparel_displacement.h"
 #include "models/pointnet.h"
 
 namespace amt {
@@ -62,10 +63,21 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
 
 // === Per-character inputs
 
-at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
-                                const at::Tensor& body_ids) {
+namespace {
+
+// Geodesic distance along the apparel from where each piece attaches to the body, and the body vertex
+// it attaches at (the seed's body neighbour, or the nearest body vertex of a detached piece's seed).
+struct Attachment {
+  std::vector<float> distance;
+  std::vector<int64_t> body_vertex;
+};
+
+Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                       const at::Tensor& body_ids) {
   const int64_t N = V.size(0), N_a = apparel_ids.size(0);
-  at::Tensor out = at::zeros({N_a}, at::kFloat);
+  Attachment out;
+  out.distance.assign(static_cast<size_t>(N_a), 0.0f);
+  out.body_vertex.assign(static_cast<size_t>(N_a), -1);
   if (N_a == 0 || body_ids.size(0) == 0) return out;
   const at::Tensor Vc = V.to(at::kFloat).contiguous(), E = edges.to(at::kLong).contiguous();
   const float* v = Vc.data_ptr<float>();
@@ -80,6 +92,7 @@ at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, co
   // Apparel adjacency, components, and seeds where a piece's mesh touches the body.
   std::vector<std::vector<std::pair<int64_t, float>>> adjacency(static_cast<size_t>(N_a));
   std::vector<float> dist(static_cast<size_t>(N_a), std::numeric_limits<float>::infinity());
+  std::vector<int64_t> source(static_cast<size_t>(N_a), -1);  // the body vertex each distance starts at
   std::vector<int64_t> parent(static_cast<size_t>(N_a));
   for (int64_t i = 0; i < N_a; ++i) parent[i] = i;
   const std::function<int64_t(int64_t)> root = [&](int64_t i) { return parent[i] == i ? i : parent[i] = root(parent[i]); };
@@ -92,7 +105,11 @@ at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, co
       parent[root(pa)] = root(pb);
     } else if (pa >= 0 || pb >= 0) {
       const int64_t p = pa >= 0 ? pa : pb;
-      dist[p] = std::min(dist[p], length(a, b));
+      const float l = length(a, b);
+      if (l < dist[p] || (l == dist[p] && (pa >= 0 ? b : a) < source[p])) {
+        dist[p] = l;
+        source[p] = pa >= 0 ? b : a;
+      }
     }
   }
   // A component that touches no body vertex hangs from its vertex nearest to the body.
@@ -110,7 +127,10 @@ at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, co
   }
   for (int64_t i = 0; i < N_a; ++i) {
     const int64_t r = root(i);
-    if (!touches[r] && closest[r] == i) dist[i] = length(ids.data_ptr<int64_t>()[i], nearest[i]);
+    if (!touches[r] && closest[r] == i) {
+      dist[i] = length(ids.data_ptr<int64_t>()[i], nearest[i]);
+      source[i] = nearest[i];
+    }
   }
   // Dijkstra from the seeds over apparel edges.
   using Item = std::pair<float, int64_t>;
@@ -122,12 +142,41 @@ at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, co
     queue.pop();
     if (d > dist[i]) continue;
     for (const auto& [j, l] : adjacency[i]) {
-      if (d + l < dist[j]) queue.emplace(dist[j] = d + l, j);
+      if (d + l < dist[j]) {
+        queue.emplace(dist[j] = d + l, j);
+        source[j] = source[i];
+      }
     }
   }
-  float* o = out.data_ptr<float>();
-  for (int64_t i = 0; i < N_a; ++i) o[i] = std::isfinite(dist[i]) ? dist[i] : 0.0f;
+  for (int64_t i = 0; i < N_a; ++i) {
+    out.distance[i] = std::isfinite(dist[i]) ? dist[i] : 0.0f;
+    out.body_vertex[i] = source[i];
+  }
   return out;
+}
+
+}  // namespace
+
+at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                                const at::Tensor& body_ids) {
+  const Attachment a = attachments(V, edges, apparel_ids, body_ids);
+  return at::tensor(a.distance, at::kFloat);
+}
+
+at::Tensor attachment_anchor_weights(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                                     const at::Tensor& body_ids, const at::Tensor& body_weights) {
+  TORCH_CHECK(body_weights.dim() == 2 && body_weights.size(0) == body_ids.size(0),
+              "attachment_anchor_weights: body_weights must be (", body_ids.size(0), ", J), got ", body_weights.sizes());
+  const int64_t N_a = apparel_ids.size(0);
+  // Without body vertices there is nothing to attach to: the nearest rule's fallback (the first joint).
+  if (body_ids.size(0) == 0) return apparel_anchor_weights(V, apparel_ids, body_ids, body_weights);
+  const Attachment a = attachments(V, edges, apparel_ids, body_ids);
+  // body_weights rows are positions in body_ids (ascending).
+  const at::Tensor b = body_ids.to(at::kLong).contiguous();
+  const int64_t* first = b.data_ptr<int64_t>();
+  std::vector<int64_t> rows(static_cast<size_t>(N_a));
+  for (int64_t i = 0; i < N_a; ++i) rows[i] = std::lower_bound(first, first + b.numel(), a.body_vertex[i]) - first;
+  return body_weights.index_select(0, at::tensor(rows, at::kLong));
 }
 
 ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
@@ -224,6 +273,14 @@ double RunningNormalizerImpl::count() const { return count_.item<double>(); }
 
 at::Tensor RunningNormalizerImpl::normalize(const at::Tensor& x) const { return (x - mean) / scale; }
 at::Tensor RunningNormalizerImpl::denormalize(const at::Tensor& x) const { return x * scale + mean; }
+
+at::Tensor apparel_anchor_weights_for(const std::string& anchor, const at::Tensor& V, const at::Tensor& edges,
+                                      const at::Tensor& apparel_ids, const at::Tensor& body_ids,
+                                      const at::Tensor& body_weights) {
+  if (anchor == "attachment") return attachment_anchor_weights(V, edges, apparel_ids, body_ids, body_weights);
+  AMT_CHECK(anchor == "nearest", "apparel anchor: expected attachment or nearest, found '", anchor, "'");
+  return apparel_anchor_weights(V, apparel_ids, body_ids, body_weights);
+}
 
 // === The module
 

@@ -57,6 +57,18 @@ inline constexpr int64_t kApparelRestChannels = 7;
 at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
                                 const at::Tensor& body_ids);
 
+/// Anchor weights by attachment: each apparel vertex takes the body weights (rows of body_weights, in
+/// body_ids order) of the body vertex where its piece attaches, the start of its attachment_distances
+/// path: a skirt's hem moves with the waist it hangs from, not with the thigh it is nearest to.
+at::Tensor attachment_anchor_weights(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                                     const at::Tensor& body_ids, const at::Tensor& body_weights);
+
+/// The anchor weights of `anchor`: "nearest" (apparel_anchor_weights, the nearest body vertex's) or
+/// "attachment" (attachment_anchor_weights). Throws amt::Error naming `anchor` otherwise.
+at::Tensor apparel_anchor_weights_for(const std::string& anchor, const at::Tensor& V, const at::Tensor& edges,
+                                      const at::Tensor& apparel_ids, const at::Tensor& body_ids,
+                                      const at::Tensor& body_weights);
+
 /// The ApparelGraph of a character:
 ///   V (N, 3) rest positions; edges (E, 2) int64 mesh edges; apparel_ids (N_a), body_ids (N_b) int64;
 ///   anchor_weights (N_a, J) the anchor skinning weights (apparel_anchor_weights); rest_joints (J, 3);
@@ -136,6 +148,10 @@ struct ApparelDynamicsOptions {
   std::string form = "local";
   /// Number of joints J of the motion.
   int64_t num_joints = 22;
+  /// Where each apparel vertex's anchor S and frame R come from (apparel_anchor_weights_for):
+  /// "attachment" (the body vertex its piece attaches at: a hem moves with the waist) or "nearest"
+  /// (its nearest body vertex; checkpoints written before this field existed hold it).
+  std::string anchor = "attachment";
   /// Output widths of the EdgeConv blocks over the normalised features, in order (eq. 13).
   std::vector<int64_t> edge_widths = {64, 64, 64};
   /// Hidden widths of the per-vertex decoder from the last block to the normalised change of d.

@@ -50,6 +50,18 @@ at::Tensor induced_edges(int64_t num_vertices, const at::Tensor& edges, const at
   return mapped.index({keep}).contiguous();
 }
 
+at::Tensor mesh_edges(const at::Tensor& faces) {
+  TORCH_CHECK(faces.dim() == 2 && faces.size(1) == 3, "mesh_edges: faces must be (F, 3), got ", faces.sizes());
+  if (faces.size(0) == 0) return at::zeros({0, 2}, at::kLong);
+  const at::Tensor f = faces.to(at::kLong);
+  const at::Tensor pairs = at::cat({f.index_select(1, at::tensor({0, 1}, at::kLong)),
+                                    f.index_select(1, at::tensor({1, 2}, at::kLong)),
+                                    f.index_select(1, at::tensor({2, 0}, at::kLong))},
+                                   0);
+  const at::Tensor ordered = at::stack({std::get<0>(pairs.min(1)), std::get<0>(pairs.max(1))}, 1);
+  return std::get<0>(at::unique_dim(ordered, 0, /*sorted=*/true)).contiguous();
+}
+
 EdgeConvImpl::EdgeConvImpl(EdgeConvOptions options_) : options(options_) {
   TORCH_CHECK(options.in_channels > 0 && options.out_channels > 0, "EdgeConv: channels must be positive");
   TORCH_CHECK(options.negative_slope >= 0, "EdgeConv: negative_slope must be >= 0 to keep sigma monotonic");

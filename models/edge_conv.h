@@ -31,6 +31,9 @@ at::Tensor neighbor_table(int64_t num_vertices, const at::Tensor& edges);
 /// positions in `vertex_ids`. `num_vertices` is the size of the full graph.
 at::Tensor induced_edges(int64_t num_vertices, const at::Tensor& edges, const at::Tensor& vertex_ids);
 
+/// The unique edges (E, 2) int64 (i < j, rows in ascending order) of triangles `faces` (F, 3).
+at::Tensor mesh_edges(const at::Tensor& faces);
+
 // === EdgeConv
 
 /// Configuration of an EdgeConv block.

@@ -22,6 +22,7 @@
 #include "data_tools/lbs_torch.h"
 #include "data_tools/metrics_torch.h"
 #include "models/apparel_dynamics.h"
+#include "models/edge_conv.h"
 #include "train/samples.h"
 
 namespace amt {
@@ -396,9 +397,10 @@ std::vector<std::unique_ptr<DatasetReader>> open_shards(const std::vector<std::s
 
 // The inertia of the inertial rule, least-squares fitted (InertiaFit) on the ground-truth detail
 // vectors of up to 16 training clips of training characters (the first of each character, round
-// robin), with the anchors the rule uses (nearest body vertex's ground-truth weights). Returns the
-// inertia and the number of clips.
-std::pair<double, int> fit_inertia(std::vector<std::unique_ptr<DatasetReader>>& readers, int64_t J) {
+// robin), with the anchors the rule uses (`anchor`, the model's: ApparelDynamicsOptions::anchor, from the
+// ground-truth weights). Returns the inertia and the number of clips.
+std::pair<double, int> fit_inertia(std::vector<std::unique_ptr<DatasetReader>>& readers, int64_t J,
+                                   const std::string& anchor) {
   constexpr int kClips = 16;
   InertiaFit fit;
   int clips = 0;
@@ -423,8 +425,10 @@ std::pair<double, int> fit_inertia(std::vector<std::unique_ptr<DatasetReader>>& 
             at::from_blob(const_cast<uint8_t*>(data.apparel_mask.data()), {N}, at::kByte).to(at::kBool);
         const at::Tensor apparel_ids = at::nonzero(mask).flatten(), body_ids = at::nonzero(mask.logical_not()).flatten();
         if (apparel_ids.size(0) == 0 || body_ids.size(0) == 0) continue;
-        const at::Tensor anchor_weights =
-            apparel_anchor_weights(V, apparel_ids, body_ids, W.index_select(0, body_ids));
+        const at::Tensor faces =
+            at::from_blob(const_cast<int32_t*>(data.mesh.F.data()), {data.mesh.F.rows(), 3}, at::kInt);
+        const at::Tensor anchor_weights = apparel_anchor_weights_for(anchor, V, mesh_edges(faces), apparel_ids,
+                                                                     body_ids, W.index_select(0, body_ids));
         const ClipInfo info = reader.clip_info(names[round]);
         const int64_t T = info.num_frames;
         const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(info.name, 0, T), T, J);
@@ -520,11 +524,17 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   const int64_t J = bundle.num_joints();
   double inertia = 0.0;
   if (std::any_of(methods.begin(), methods.end(), [](const MethodSpec& m) { return m.source == ApparelSource::kInertial; })) {
-    std::tie(inertia, result.inertia_clips) = fit_inertia(readers, J);
+    std::tie(inertia, result.inertia_clips) = fit_inertia(readers, J, bundle.apparel_anchor());
     result.inertia = inertia;
     result.notes.push_back("inertial rule: inertia " + std::to_string(inertia) + ", least-squares fitted on " +
                            std::to_string(result.inertia_clips) + " training clips (InertiaFit).");
   }
+  result.notes.push_back("apparel anchor: " + bundle.apparel_anchor() +
+                         (bundle.apparel_anchor() == "attachment"
+                              ? " (each apparel vertex skinned with the weights of the body vertex its piece "
+                                "attaches at)"
+                              : " (each apparel vertex skinned with the weights of its nearest body vertex)") +
+                         "; the zero-network rules use the same anchors.");
   // "body_apparel" is the full model without its refiner: the same bind, B̂ and Â (the apparel history
   // holds Â, not the refined V̂). When both run, the full model's steps also give body_apparel's
   // frames, tile(Â, B̂), which is what a body_apparel stepper returns, at the cost of one model run.

@@ -56,6 +56,7 @@ template <typename Visitor>
 void visit(ApparelDynamicsOptions& o, Visitor&& v) {
   v("form", o.form);
   v("num_joints", o.num_joints);
+  v("anchor", o.anchor);
   v("edge_widths", o.edge_widths);
   v("decoder_widths", o.decoder_widths);
   v("negative_slope", o.negative_slope);
@@ -220,6 +221,12 @@ void options_from_json(const std::string& text, const std::string& source, Appar
 }
 void options_from_json(const std::string& text, const std::string& source, ApparelDynamicsOptions& options) {
   read_json(text, source, options);
+  // A checkpoint's options hold every field ("form" among them); one written before the anchor was a
+  // choice anchored at the nearest body vertex. (A fragment such as --apparel-options keeps the default.)
+  const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.contains("form") && !j.contains("anchor")) options.anchor = "nearest";
+  AMT_CHECK(options.anchor == "attachment" || options.anchor == "nearest", source,
+            ": options.anchor: expected \"attachment\" or \"nearest\", found \"", options.anchor, "\"");
   AMT_CHECK(options.form == "local", source, ": options.form: expected \"local\" (the apparel dynamics module), found \"",
             options.form, "\"");
 }

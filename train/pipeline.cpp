@@ -244,7 +244,8 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: weights: expected (", N, ", ", J, "), found ", options.weights.sizes());
     c.vertex_weights = options.weights.to(at::kFloat).contiguous();
     c.body_weights = c.vertex_weights.index_select(0, c.body_ids);
-    c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
+    c.apparel_anchor_weights = apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.edges, c.apparel_ids, c.body_ids,
+                                                          c.body_weights);
     set_apparel_graph(c);
     return c;
   }
@@ -255,7 +256,8 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   } else {
     c.body_weights = at::zeros({0, J}, at::kFloat);
   }
-  c.apparel_anchor_weights = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, c.body_weights);
+  c.apparel_anchor_weights = apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.edges, c.apparel_ids, c.body_ids,
+                                                          c.body_weights);
   set_apparel_graph(c);
   if (options.all_vertex_weights) {
     // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body

@@ -48,6 +48,9 @@ struct ModelBundle {
   int64_t num_joints() const { return static_cast<int64_t>(joint_names.size()); }
   /// Whether f_d is the local form.
   bool local_apparel() const { return !apparel_dynamics.is_empty(); }
+  /// The anchor of the apparel module (ApparelDynamicsOptions::anchor; "nearest" for the global form,
+  /// whose skinned anchor is the nearest body vertex's), which binding gives every character.
+  std::string apparel_anchor() const { return local_apparel() ? apparel_dynamics->options.anchor : "nearest"; }
   /// f_d as a module, whichever form it is.
   const torch::nn::Module* apparel_module() const;
   /// The skinning predictor of `variant`: skinning, skinning_no_geodesic or skinning_sorted. Throws

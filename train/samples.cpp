@@ -226,8 +226,9 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->body_edges = induced_edges(N, t->edges, t->body_ids);
     t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
-    t->apparel_anchor_weights =
-        apparel_anchor_weights(t->V, t->apparel_ids, t->body_ids, t->body_weights.index_select(0, t->body_ids));
+    t->apparel_anchor = options_.apparel_anchor;
+    t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->edges, t->apparel_ids,
+                                                           t->body_ids, t->body_weights.index_select(0, t->body_ids));
     t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
                                      t->apparel_neighbors);
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {

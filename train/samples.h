@@ -57,8 +57,10 @@ struct CharacterTensors {
   at::Tensor apparel_edges;
   /// apparel_neighbors (N_a, K_max) int64 neighbour table of the apparel graph (neighbor_table).
   at::Tensor apparel_neighbors;
-  /// apparel_anchor_weights (N_a, J) float: the ground-truth weights of each apparel vertex's nearest
-  /// body vertex (apparel_anchor_weights), which skin the apparel network's anchor S^(t).
+  /// apparel_anchor_weights (N_a, J) float: the ground-truth weights of each apparel vertex's anchor
+  /// body vertex (apparel_anchor_weights_for `apparel_anchor`: where its piece attaches, or its
+  /// nearest body vertex), which skin the apparel network's anchor S^(t).
+  std::string apparel_anchor;
   at::Tensor apparel_anchor_weights;
   /// The apparel dynamics module's per-character inputs (frame joints, rest channels; its neighbour
   /// table is apparel_neighbors).
@@ -101,6 +103,9 @@ struct SampleSourceOptions {
   /// Compute CharacterTensors::G_body for every module, not only for skinning (the refiner needs it
   /// when B̂ comes from a trained skinning predictor).
   bool geodesics = false;
+  /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):
+  /// "nearest" (the global form's and the earlier local checkpoints') or "attachment".
+  std::string apparel_anchor = "nearest";
 };
 
 /// Samples over one or more shards. Opening reads only attributes, clip infos and apparel masks;

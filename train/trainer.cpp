@@ -204,8 +204,9 @@ at::Tensor skinned_body(SkinningPredictor& skinning, const CharacterTensors& c, 
   return linear_blend_skinning(V_b, W, motion, c.joints);
 }
 
-// S (T, N_a, 3): the rest apparel skinned to `motion` with the weights of the nearest body vertices
-// (ApparelDisplacementOptions::skinned_anchor), from the same body weights as skinned_body; undefined
+// S (T, N_a, 3): the rest apparel skinned to `motion` with the weights of the anchor body vertices
+// (ApparelDisplacementOptions::skinned_anchor; CharacterTensors::apparel_anchor), from the same body
+// weights as skinned_body; undefined
 // for a network without the anchor. No gradient.
 at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const CharacterTensors& c,
                            const at::Tensor& motion) {
@@ -215,7 +216,7 @@ at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const Cha
   at::Tensor W = c.apparel_anchor_weights;
   if (!skinning.is_empty()) {
     const at::Tensor W_b = skinning->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body);
-    W = apparel_anchor_weights(c.V, c.apparel_ids, c.body_ids, W_b);
+    W = apparel_anchor_weights_for(c.apparel_anchor, c.V, c.edges, c.apparel_ids, c.body_ids, W_b);
   }
   return linear_blend_skinning(A_rest, W, motion, c.joints);
 }
@@ -602,6 +603,19 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
             "--apparel-form: expected local or global, found '", o.networks.apparel_form, "'");
 
   SampleSourceOptions sampling;
+  // The anchor of the local apparel module being trained, or of the frozen one a refiner trains on.
+  if (local_apparel) {
+    ApparelDynamicsOptions a = o.networks.apparel_dynamics;
+    if (!resumed.empty()) options_from_json(resumed[0].options_json, resume_paths[0], a);
+    sampling.apparel_anchor = a.anchor;
+  } else if (kind == ModuleKind::kRefiner && !end_to_end && !o.apparel_checkpoint.empty()) {
+    const CheckpointInfo frozen = read_checkpoint_info(o.apparel_checkpoint, ModuleKind::kApparel);
+    if (is_local_apparel_options(frozen.options_json)) {
+      ApparelDynamicsOptions a;
+      options_from_json(frozen.options_json, o.apparel_checkpoint, a);
+      sampling.apparel_anchor = a.anchor;
+    }
+  }
   sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;
   sampling.clip_start_fraction = local_apparel ? o.rest_start_fraction : 0.0;
   sampling.frames = kind == ModuleKind::kSkinning && !end_to_end ? o.skinning_frames : o.window;

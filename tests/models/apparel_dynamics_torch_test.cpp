@@ -5,6 +5,9 @@
 // the attachment distances on a hand-made mesh, and the inertia fit.
 #include "models/apparel_dynamics.h"
 
+#include "data_tools/error.h"
+#include "models/edge_conv.h"
+
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 #include <torch/utils.h>
@@ -241,6 +244,34 @@ TEST(ApparelDynamics, AttachmentDistancesAlongTheApparel) {
   const at::Tensor d = attachment_distances(V, E, at::tensor({1, 2, 3, 4, 5}, at::kLong), at::tensor({0}, at::kLong));
   const std::vector<float> expected = {1.f, 2.f, 3.f, 0.5f, 2.5f};
   for (int i = 0; i < 5; ++i) EXPECT_NEAR(d[i].item<float>(), expected[i], 1e-6) << i;
+}
+
+TEST(ApparelDynamics, AttachmentAnchorsFollowWhereThePieceHangsFrom) {
+  // Body vertices 0 (all weight on joint 0) and 6 (joint 1). Chain 1-2-3 hangs from 0 by edge 0-1 while
+  // its tip 3 lies next to body vertex 6; the separate piece 4-5 is nearest the body at 4, which is
+  // next to 6, while 5 lies next to 0.
+  const at::Tensor V = at::tensor({0.f, 0.f, 0.f,  1.f, 0.f, 0.f,  2.f, 0.f, 0.f,  3.f, 0.f, 0.f,
+                                   3.f, 0.2f, 0.f, 0.3f, 0.1f, 0.f, 3.f, 0.1f, 0.f}).view({7, 3});
+  const at::Tensor E = at::tensor({0, 1, 1, 2, 2, 3, 4, 5}, at::kLong).view({4, 2});
+  const at::Tensor apparel = at::tensor({1, 2, 3, 4, 5}, at::kLong), body = at::tensor({0, 6}, at::kLong);
+  const at::Tensor W_b = at::tensor({1.f, 0.f, 0.f, 1.f}).view({2, 2});
+  const at::Tensor attached = attachment_anchor_weights(V, E, apparel, body, W_b);
+  const at::Tensor nearest = apparel_anchor_weights_for("nearest", V, E, apparel, body, W_b);
+  // By attachment: 1, 2, 3 with vertex 0's joint, the piece 4-5 with vertex 6's.
+  const std::vector<int64_t> joint = {0, 0, 0, 1, 1}, nearest_joint = {0, 1, 1, 1, 0};
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(attached[i][joint[i]].item<float>(), 1.0f) << i;
+    EXPECT_EQ(nearest[i][nearest_joint[i]].item<float>(), 1.0f) << i;
+  }
+  EXPECT_TRUE(apparel_anchor_weights_for("attachment", V, E, apparel, body, W_b).equal(attached));
+  EXPECT_THROW(apparel_anchor_weights_for("farthest", V, E, apparel, body, W_b), Error);
+}
+
+TEST(ApparelDynamics, MeshEdgesAreUniqueAndOrdered) {
+  // Two triangles sharing the edge 1-2: five edges.
+  const at::Tensor edges = mesh_edges(at::tensor({0, 1, 2, 2, 1, 3}, at::kInt).view({2, 3}));
+  EXPECT_TRUE(edges.equal(at::tensor({0, 1, 0, 2, 1, 2, 1, 3, 2, 3}, at::kLong).view({5, 2}))) << edges;
+  EXPECT_EQ(mesh_edges(at::zeros({0, 3}, at::kLong)).size(0), 0);
 }
 
 TEST(ApparelDynamics, RolloutFeedsPredictionsBack) {

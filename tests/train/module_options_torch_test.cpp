@@ -64,6 +64,30 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(g2.encoder_widths, g.encoder_widths);
 }
 
+TEST(ModuleOptions, ApparelAnchorOfOldCheckpointsIsTheNearestBodyVertex) {
+  // A new module anchors by attachment; a checkpoint's options (every field, "form" among them)
+  // written before the anchor was a field were anchored at the nearest body vertex; a fragment such
+  // as --apparel-options keeps the default.
+  ApparelDynamicsOptions fresh;
+  EXPECT_EQ(fresh.anchor, "attachment");
+  ApparelDynamicsOptions old;
+  options_from_json("{\"form\":\"local\",\"num_joints\":22,\"inertia\":0.0}", "old.ckpt", old);
+  EXPECT_EQ(old.anchor, "nearest");
+  ApparelDynamicsOptions fragment;
+  options_from_json("{\"edge_widths\":[8]}", "--apparel-options", fragment);
+  EXPECT_EQ(fragment.anchor, "attachment");
+  ApparelDynamicsOptions round;
+  options_from_json(options_to_json(old), "x.ckpt", round);
+  EXPECT_EQ(round.anchor, "nearest");
+  ApparelDynamicsOptions bad;
+  try {
+    options_from_json("{\"anchor\":\"farthest\"}", "x.ckpt", bad);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "x.ckpt: options.anchor: expected \"attachment\" or \"nearest\", found \"farthest\"");
+  }
+}
+
 TEST(ModuleOptions, BadFieldsAreNamed) {
   JointRefinerOptions r;
   try {
