@@ -396,6 +396,8 @@ DatasetWriter::DatasetWriter(const std::string& path, float fps, const std::vect
   check_fps(fps, path);
   check_joint_names(joint_names, path);
   create_parent_folder(path);
+  check_replaceable_file(path);
+  prepare_temporary_file(amt::temporary_path(path));
   impl_ = std::make_unique<Impl>(path);
   impl_->fps = fps;
   impl_->joint_names = joint_names;
@@ -409,6 +411,7 @@ DatasetWriter DatasetWriter::append(const std::string& path) {
   const h5::QuietErrors quiet;
   std::error_code error;
   AMT_CHECK(fs::is_regular_file(path, error), path, ": cannot append: no such file");
+  prepare_temporary_file(amt::temporary_path(path));
   auto impl = std::make_unique<Impl>(path);
   fs::copy_file(path, impl->temporary, fs::copy_options::overwrite_existing, error);
   AMT_CHECK(!error, path, ": cannot copy to the temporary file ", impl->temporary, ": ", error.message());

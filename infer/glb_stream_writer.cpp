@@ -39,7 +39,12 @@ void write_padding(std::FILE* f, size_t size, char pad, const std::string& path)
 
 GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, int num_vertices, float fps,
                                  const std::string& name, const std::string& clip)
-    : path_(path), data_path_(path + ".frames.tmp"), name_(name), clip_(clip), fps_(fps), num_vertices_(num_vertices) {
+    : path_(path),
+      data_path_(frames_temporary_path(path)),
+      name_(name),
+      clip_(clip),
+      fps_(fps),
+      num_vertices_(num_vertices) {
   AMT_CHECK(std::isfinite(fps) && fps > 0, path, ": fps: expected a positive frame rate, found ", fps);
   AMT_CHECK(num_vertices > 0, path, ": vertices: expected at least 1, found ", num_vertices);
   AMT_CHECK(F.rows() > 0, path, ": faces: expected at least 1 face, found none");
@@ -63,6 +68,9 @@ GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, in
     }
   }
   create_parent_folder(path);
+  check_replaceable_file(path);
+  prepare_temporary_file(data_path_);
+  prepare_temporary_file(temporary_path(path));
   data_ = std::fopen(data_path_.c_str(), "wb");
   AMT_CHECK(data_ != nullptr, path, ": output: expected a writable path, found an error creating ", data_path_, " (",
             std::strerror(errno), ")");

@@ -208,7 +208,7 @@ TEST(Animate, ObjFolderHasOneFilePerFrame) {
   o.playback.frames = 3;
   const AnimateSummary s = animate(o);
   EXPECT_EQ(s.frames, 3);
-  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{"frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
+  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{".amt-output", "frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
   EXPECT_EQ(read_obj((f.dir / "frames" / "frame_0002.obj").string()).num_vertices(), s.vertices);
   EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));
 }
