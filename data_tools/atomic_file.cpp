@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 
 namespace amt {
 
@@ -61,18 +62,23 @@ void prepare_temporary_file(const std::string& temporary) {
             ": temporary: expected to remove the stale temporary file, found error: ", error.message());
 }
 
+void discard_temporary(const std::string& temporary) {
+  std::error_code ignored;
+  std::filesystem::remove_all(temporary, ignored);
+  unregister_temporary(temporary);
+}
+
 void replace_with_temporary(const std::string& temporary, const std::string& path) {
   std::error_code error;
   try {
     check_replaceable_file(path);
   } catch (const Error&) {
-    std::filesystem::remove(temporary, error);
+    discard_temporary(temporary);
     throw;
   }
-  std::filesystem::rename(temporary, path, error);
+  error = rename_registered_temporary(temporary, path);
   if (error) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
+    discard_temporary(temporary);
     fail(path, ": rename: expected to replace the file with ", temporary, ", found error: ", error.message());
   }
 }
@@ -82,14 +88,17 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
   const std::string temporary = temporary_path(path);
   check_replaceable_file(path);
   prepare_temporary_file(temporary);
+  register_temporary(temporary);
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": file: expected a writable file, found none (permissions?)");
+    if (!out.good()) {
+      discard_temporary(temporary);
+      fail(temporary, ": file: expected a writable file, found none (permissions?)");
+    }
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.close();
     if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(temporary, ignored);
+      discard_temporary(temporary);
       fail(temporary, ": write: expected ", bytes.size(), " bytes written, found a write error (disk full?)");
     }
   }

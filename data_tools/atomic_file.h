@@ -27,11 +27,17 @@ void check_replaceable_file(const std::string& path);
 /// FIFO that would block), which is left alone.
 void prepare_temporary_file(const std::string& temporary);
 
+/// Removes `temporary` (a file or a folder) and takes it off the live temporaries
+/// (data_tools/temporary_registry.h). Never throws.
+void discard_temporary(const std::string& temporary);
+
 /// Renames `temporary` onto `path`, replacing an old regular file in one step (check_replaceable_file
-/// first). On failure the temporary is removed and amt::Error names both.
+/// first) and takes it off the live temporaries. On failure the temporary is removed and amt::Error
+/// names both.
 void replace_with_temporary(const std::string& temporary, const std::string& path);
 
-/// Writes `bytes` to temporary_path(path) (creating the parent folder) and renames it onto path.
+/// Writes `bytes` to temporary_path(path) (creating the parent folder; registered as a live
+/// temporary while it exists) and renames it onto path.
 void write_file_atomically(const std::string& path, std::string_view bytes);
 
 }  // namespace amt

@@ -22,6 +22,7 @@
 #include "data_tools/body_generator.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/motion.h"
 
 #ifdef _OPENMP
@@ -211,12 +212,15 @@ void check_or_write_manifest(const std::string& dir, const json& manifest) {
   }
   // Several shard processes may start at once: each writes its own temporary, the renames are atomic.
   const std::string temporary = path + "." + std::to_string(::getpid()) + ".tmp";
+  register_temporary(temporary);
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": cannot write (expected a writable output folder)");
     out << manifest.dump(2) << "\n";
     out.close();
-    AMT_CHECK(out.good(), temporary, ": write error (disk full?)");
+    if (!out.good()) {
+      discard_temporary(temporary);
+      fail(temporary, ": write: expected the manifest written, found a write error (disk full or no writable folder?)");
+    }
   }
   replace_with_temporary(temporary, path);
 }

@@ -10,6 +10,7 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/hdf5_handle.h"
 
 namespace amt {
@@ -326,15 +327,17 @@ struct DatasetWriter::Impl {
   h5::Dataset joint_dataset;
   h5::Dataset truth_dataset;
 
-  explicit Impl(const std::string& target) : path(target), temporary(amt::temporary_path(target)) {}
+  // The temporary is registered from here on (data_tools/temporary_registry.h): a signal removes it.
+  explicit Impl(const std::string& target) : path(target), temporary(amt::temporary_path(target)) {
+    register_temporary(temporary);
+  }
 
   // Without a successful commit, the temporary file goes; the target is never touched.
   ~Impl() {
     if (committed) return;
     const h5::QuietErrors quiet;
     close_all();
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
+    discard_temporary(temporary);
   }
 
   void close_all() {

@@ -12,6 +12,7 @@
 #include "data_tools/atomic_file.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/obj_io.h"
 #include "infer/glb_stream_writer.h"
 
@@ -177,20 +178,18 @@ class ObjFolderWriter : public FrameWriter {
     for (int n = info.frames; n >= 10000; n /= 10) ++digits_;
     check_obj_folder_target(folder_, temporary_);
     std::error_code error;
+    register_temporary(temporary_);
+    created_ = true;
     fs::remove_all(temporary_, error);  // a stale temporary of amt's (checked above)
     AMT_CHECK(!error, temporary_, ": --out: expected to remove the stale temporary folder, found an error (",
               error.message(), ")");
     fs::create_directories(temporary_, error);
     AMT_CHECK(!error, folder_, ": output: expected a writable folder, found an error creating ", temporary_, " (",
               error.message(), ")");
-    created_ = true;
     write_obj_marker(temporary_, 0);  // first, so that a killed run's temporary is recognised as amt's
   }
   ~ObjFolderWriter() override {
-    if (created_ && !finished_) {
-      std::error_code ignored;
-      fs::remove_all(temporary_, ignored);
-    }
+    if (created_ && !finished_) discard_temporary(temporary_);
   }
   void append(const MatrixX3f& V, const Transforms&) override {
     char name[32];
@@ -211,6 +210,7 @@ class ObjFolderWriter : public FrameWriter {
       // Swap the new folder and the old one in one step, then remove the old one (now the temporary).
       if (::renameat2(AT_FDCWD, temporary_.c_str(), AT_FDCWD, folder_.c_str(), RENAME_EXCHANGE) == 0) {
         fs::remove_all(temporary_, error);
+        unregister_temporary(temporary_);
         finished_ = true;
         AMT_CHECK(!error, temporary_, ": output: expected to remove the replaced folder, found an error (",
                   error.message(), ")");
@@ -220,7 +220,7 @@ class ObjFolderWriter : public FrameWriter {
       AMT_CHECK(!error, folder_, ": output: expected to replace the old folder, found an error (", error.message(),
                 ")");
     }
-    fs::rename(temporary_, folder_, error);
+    error = rename_registered_temporary(temporary_, folder_);
     AMT_CHECK(!error, folder_, ": output: expected to rename ", temporary_, " onto it, found an error (",
               error.message(), ")");
     finished_ = true;
@@ -273,11 +273,12 @@ void check_output_writable(const std::string& path) {
   // A probe file beside the output (for an OBJ folder, inside its parent).
   const std::string probe = kind == "obj" ? target + ".probe.tmp" : temporary_path(path);
   prepare_temporary_file(probe);
+  register_temporary(probe);
   std::FILE* f = std::fopen(probe.c_str(), "wb");
+  if (f == nullptr) unregister_temporary(probe);
   AMT_CHECK(f != nullptr, path, ": --out: expected a writable location, found that ", probe, " cannot be created");
   std::fclose(f);
-  std::error_code ignored;
-  std::filesystem::remove(probe, ignored);
+  discard_temporary(probe);
 }
 
 std::unique_ptr<FrameWriter> open_frame_writer(const std::string& path, const OutputInfo& info) {

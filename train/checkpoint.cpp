@@ -9,6 +9,7 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "train/module_options.h"
 
 namespace amt {
@@ -189,11 +190,11 @@ void save_archive_atomically(torch::serialize::OutputArchive& archive, const std
                              const std::string& what) {
   create_parent_folder(path);
   const std::string temporary = temporary_path(path);
+  register_temporary(temporary);
   try {
     archive.save_to(temporary);
   } catch (const std::exception& e) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
+    discard_temporary(temporary);
     fail(temporary, ": cannot write the ", what, " (", first_line(e), ")");
   }
   replace_with_temporary(temporary, path);

@@ -20,13 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 std::vector<std::string> names_in(const fs::path& dir) {
   std::vector<std::string> out;
   for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename().string());
@@ -65,11 +58,11 @@ TEST(ObjFolderOutput, IsMarkedAndReplacesOnlyAFolderAmtWrote) {
   EXPECT_EQ(write_frames(out, 3), out + "/ (3 OBJ files)");
   EXPECT_EQ(names_in(out),
             (std::vector<std::string>{".amt-output", "frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
-  EXPECT_EQ(read_all(dir / "frames" / ".amt-output"), "amt-obj-sequence\nversion 1\nframes 3\n");
+  EXPECT_EQ(test::read_file_bytes(dir / "frames" / ".amt-output"), "amt-obj-sequence\nversion 1\nframes 3\n");
   // A second run replaces amt's own folder: two frames now, nothing left of the first run.
   write_frames(out + "/", 2);
   EXPECT_EQ(names_in(out), (std::vector<std::string>{".amt-output", "frame_0000.obj", "frame_0001.obj"}));
-  EXPECT_EQ(read_all(dir / "frames" / ".amt-output"), "amt-obj-sequence\nversion 1\nframes 2\n");
+  EXPECT_EQ(test::read_file_bytes(dir / "frames" / ".amt-output"), "amt-obj-sequence\nversion 1\nframes 2\n");
   EXPECT_EQ(names_in(dir), (std::vector<std::string>{"frames"}));
 }
 
@@ -82,20 +75,20 @@ TEST(ObjFolderOutput, RefusesAUsersFolderAFileAndAFolderOfAmtsHoldingAUsersFile)
                                              ".amt-output), found a folder amt did not write"),
             std::string::npos)
       << e;
-  EXPECT_EQ(read_all(dir / "mine" / "thesis.tex"), "years of work");
+  EXPECT_EQ(test::read_file_bytes(dir / "mine" / "thesis.tex"), "years of work");
 
   std::ofstream(dir / "notes.txt") << "notes";
   e = refusal((dir / "notes.txt").string());
   EXPECT_NE(e.find("notes.txt: --out: expected no file there or an OBJ folder amt wrote"), std::string::npos) << e;
   EXPECT_NE(e.find("found a regular file"), std::string::npos) << e;
-  EXPECT_EQ(read_all(dir / "notes.txt"), "notes");
+  EXPECT_EQ(test::read_file_bytes(dir / "notes.txt"), "notes");
 
   const std::string out = (dir / "frames").string();
   write_frames(out, 1);
   std::ofstream(dir / "frames" / "keep.txt") << "mine";
   e = refusal(out);
   EXPECT_NE(e.find("holding a file amt did not write (keep.txt)"), std::string::npos) << e;
-  EXPECT_EQ(read_all(dir / "frames" / "keep.txt"), "mine");
+  EXPECT_EQ(test::read_file_bytes(dir / "frames" / "keep.txt"), "mine");
   EXPECT_TRUE(fs::exists(dir / "frames" / "frame_0000.obj"));
 }
 
@@ -132,7 +125,7 @@ TEST(ObjFolderOutput, ReplacesAStaleTemporaryOfAmtsAndLeavesAForeignOneAlone) {
                                                   "interrupted amt run, found a folder amt did not write"),
             std::string::npos)
       << e;
-  EXPECT_EQ(read_all(dir / "other.tmp" / "backup.obj"), "v 1 2 3\n");
+  EXPECT_EQ(test::read_file_bytes(dir / "other.tmp" / "backup.obj"), "v 1 2 3\n");
   EXPECT_FALSE(fs::exists(dir / "other"));
 }
 
@@ -162,7 +155,7 @@ TEST(FileOutput, NeverReplacesAFolderALinkOrAFifo) {
   fs::create_symlink(dir / "precious.txt", dir / "e.glb.frames.tmp");
   e = refusal((dir / "e.glb").string());
   EXPECT_NE(e.find("e.glb.frames.tmp: temporary:"), std::string::npos) << e;
-  EXPECT_EQ(read_all(dir / "precious.txt"), "precious");
+  EXPECT_EQ(test::read_file_bytes(dir / "precious.txt"), "precious");
   // A stale regular temporary of a killed run is replaced.
   std::ofstream(dir / "f.glb.frames.tmp") << "stale";
   std::ofstream(dir / "f.glb.tmp") << "stale";

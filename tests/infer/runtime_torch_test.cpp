@@ -13,6 +13,7 @@
 #include "data_tools/gltf_import.h"
 #include "data_tools/obj_io.h"
 #include "data_tools/shapes.h"
+#include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
@@ -24,36 +25,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The micro dataset (capsule character whose pelvis capsules are apparel, 30-frame walks) and its mask.
-struct Fixture {
-  fs::path dir;
-  std::string data, model, mask;
-};
+using Fixture = test::RuntimeFixture;
 
-Fixture make_fixture(const std::string& name) {
-  Fixture f;
-  f.dir = test::temp_dir(name);
-  f.data = (f.dir / "micro.h5").string();
-  test::write_micro_dataset(f.data);
-  f.model = test::write_fresh_model(f.dir / "model");
-  // The ground-truth mask as an artist's mask file, so the (untrained) segmenter does not decide.
-  const CharacterData c = DatasetReader(f.data).read_character("capsules");
-  f.mask = (f.dir / "mask.txt").string();
-  std::ofstream out(f.mask);
-  for (uint8_t m : c.apparel_mask) out << int(m) << "\n";
-  return f;
-}
+Fixture make_fixture(const std::string& name) { return test::make_runtime_fixture(name); }
 
-AnimateOptions options_for(const Fixture& f, const std::string& out) {
-  AnimateOptions o;
-  o.character.spec = f.data + ":capsules";
-  o.motion.spec = f.data + ":walk0";
-  o.model_dir = f.model;
-  o.apparel_mask = f.mask;
-  o.out = out;
-  o.verbose = false;
-  return o;
-}
+AnimateOptions options_for(const Fixture& f, const std::string& out) { return test::runtime_options(f, out); }
 
 std::vector<fs::path> files_in(const fs::path& dir) {
   std::vector<fs::path> out;
