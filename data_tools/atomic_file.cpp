@@ -1,5 +1,7 @@
 #include "data_tools/atomic_file.h"
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -95,11 +97,14 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
       discard_temporary(temporary);
       fail(temporary, ": file: expected a writable file, found none (permissions?)");
     }
+    errno = 0;
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.close();
     if (!out) {
+      const int error = errno;  // set by the failed write(2) or close(2) under the stream
       discard_temporary(temporary);
-      fail(temporary, ": write: expected ", bytes.size(), " bytes written, found a write error (disk full?)");
+      fail(temporary, ": write: expected ", bytes.size(), " bytes written, found an error (",
+           error != 0 ? std::strerror(error) : "disk full?", ")");
     }
   }
   replace_with_temporary(temporary, path);

@@ -558,10 +558,13 @@ void DatasetWriter::end_clip() {
   w.require_clip("end_clip");
   AMT_CHECK(w.clip_frames > 0, clip_where(w.path, w.clip.name),
             ": end_clip: expected at least 1 frame (call append_frame), found 0");
+  // The closes flush the clip's last chunks: a failed one (a full disk) is an error, not a silent loss.
+  const bool closed = w.truth_dataset.close() >= 0 && w.joint_dataset.close() >= 0;
   w.truth_dataset.reset();
   w.joint_dataset.reset();
   w.clip_group.reset();
   w.clip_open = false;
+  if (!closed) h5::fail_hdf5(clip_where(w.path, w.clip.name), "end_clip: cannot write the clip's frames");
 }
 
 void DatasetWriter::commit() {

@@ -4,6 +4,9 @@
 #include <torch/serialize/output-archive.h>
 #include <torch/utils.h>
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
@@ -189,13 +192,36 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
 void save_archive_atomically(torch::serialize::OutputArchive& archive, const std::string& path,
                              const std::string& what) {
   create_parent_folder(path);
+  check_replaceable_file(path);
   const std::string temporary = temporary_path(path);
+  prepare_temporary_file(temporary);
   register_temporary(temporary);
+  std::FILE* out = std::fopen(temporary.c_str(), "wb");
+  if (out == nullptr) {
+    const int error = errno;
+    discard_temporary(temporary);
+    fail(temporary, ": cannot create the ", what, " (", std::strerror(error), ")");
+  }
+  // LibTorch's zip writer throws c10::Error from its destructor when a write fails, which ends the
+  // process in std::terminate. So it writes through a function that always reports success, and the
+  // first write error is kept here and reported once the archive is complete.
+  int write_error = 0;
   try {
-    archive.save_to(temporary);
+    archive.save_to([&](const void* data, size_t size) -> size_t {
+      if (write_error == 0 && size > 0 && std::fwrite(data, 1, size, out) != size) write_error = errno ? errno : EIO;
+      return size;
+    });
   } catch (const std::exception& e) {
+    std::fclose(out);
     discard_temporary(temporary);
     fail(temporary, ": cannot write the ", what, " (", first_line(e), ")");
+  }
+  if (std::fflush(out) != 0 && write_error == 0) write_error = errno ? errno : EIO;
+  if (std::fclose(out) != 0 && write_error == 0) write_error = errno ? errno : EIO;
+  if (write_error != 0) {
+    discard_temporary(temporary);
+    fail(temporary, ": write: expected the whole ", what, " written, found an error (", std::strerror(write_error),
+         ")");
   }
   replace_with_temporary(temporary, path);
 }

@@ -1,5 +1,6 @@
 // `amt animate` as a user runs it, in a child process: exit codes, messages and what is left on disk
-// when a run is stopped by a signal (issue 19: no temporary left, a good output untouched).
+// when a run is stopped by a signal (issue 19: no temporary left, a good output untouched) and when
+// the disk is full (one line naming the file, no abort, no crash at exit, no temporary left).
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -7,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -131,6 +133,47 @@ TEST(AnimateCli, SigintMidRunRemovesTheTemporaryObjFolder) {
   EXPECT_FALSE(fs::exists(out + ".tmp"));
   EXPECT_FALSE(fs::exists(out));
   EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));  // the finished bind cache stays
+}
+
+// The shell commands that give the amt program a file size limit of `blocks` 512-byte blocks, with
+// SIGXFSZ ignored so that writes past it fail with EFBIG: a full disk, without root or a mount. ""
+// when the shell cannot set the limit.
+std::string full_disk_prefix(int blocks) {
+  const std::string prefix = "ulimit -f " + std::to_string(blocks) + " && trap '' XFSZ && ";
+  return test::run_command(prefix + "true").status == 0 ? prefix : "";
+}
+
+size_t count_lines(const std::string& text) {
+  return size_t(std::count(text.begin(), text.end(), '\n'));
+}
+
+TEST(AnimateCli, AFullDiskGivesOneLineErrorsAndLeavesNoTemporary) {
+  const std::string full_disk = full_disk_prefix(8);  // 4 KiB
+  if (full_disk.empty()) GTEST_SKIP() << "the shell cannot set a file size limit (ulimit -f): no full disk to simulate";
+  const test::RuntimeFixture f = test::make_runtime_fixture("cli_full_disk");
+  const fs::path d = f.dir;
+  struct Case {
+    std::string out, bind, expected;
+  };
+  const std::vector<Case> cases = {
+      {"walk.glb", "none", (d / "walk.glb.frames.tmp").string() + ": write: expected to write "},
+      {"walk.h5", "none", (d / "walk.h5").string() + ": "},
+      {"frames", "none", (d / "frames.tmp").string() + "/frame_0000.obj.tmp: write: expected "},
+      {"bound.glb", (d / "walk.bind").string(),
+       (d / "walk.bind.tmp").string() + ": write: expected the whole bind cache written, found an error"}};
+  for (const Case& c : cases) {
+    const test::CommandResult r = test::run_command(
+        full_disk + shell_command(animate_args(f, f.data + ":walk0", (d / c.out).string(), {"--bind", c.bind})));
+    EXPECT_EQ(r.status, 1) << c.out << ": " << r.err;
+    EXPECT_EQ(r.err.rfind("amt: error: " + c.expected, 0), 0u) << c.out << ": " << r.err;
+    EXPECT_NE(r.err.find("File too large"), std::string::npos) << c.out << ": " << r.err;
+    EXPECT_EQ(count_lines(r.err), 1u) << c.out << ": " << r.err;
+  }
+  // Nothing but the inputs is left: no output, no temporary, no bind cache.
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(d)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"mask.txt", "micro.h5", "model"}));
 }
 
 }  // namespace

@@ -16,6 +16,8 @@
 #include "data_tools/error.h"
 #include "data_tools/skeleton.h"
 #include "micro_dataset.h"
+#include "tests/file_size_limit.h"
+#include "tests/test_support.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
 #include "models/edge_conv.h"
@@ -71,6 +73,29 @@ std::string error_of(const std::function<void()>& fn) {
     return e.what();
   }
   return "(no error)";
+}
+
+TEST(Checkpoint, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
+  test::use_one_thread();
+  torch::manual_seed(1);
+  ApparelDisplacementNet net(tiny_apparel(5));
+  torch::optim::AdamW optimizer(net->parameters(), torch::optim::AdamWOptions(1e-3));
+  train_two_steps(net, optimizer);
+  const std::string path = temp_path("full_disk.ckpt");
+  save_checkpoint(path, apparel_info(net), *net, &optimizer);
+  const std::string good = test::read_file_bytes(path);
+  ASSERT_GT(good.size(), 2048u);
+  std::string error;
+  {
+    const test::FileSizeLimit full_disk(2048);
+    if (!full_disk.active())
+      GTEST_SKIP() << "the file size limit (RLIMIT_FSIZE) cannot be set: no full disk to simulate";
+    error = error_of([&] { save_checkpoint(path, apparel_info(net), *net, &optimizer); });
+  }
+  // No std::terminate from LibTorch's archive writer: one line, the temporary gone, the good file kept.
+  EXPECT_EQ(error, path + ".tmp: write: expected the whole checkpoint written, found an error (File too large)");
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  EXPECT_EQ(test::read_file_bytes(path), good);
 }
 
 TEST(Checkpoint, RoundTripRestoresParametersAndOptimizerState) {
