@@ -10,6 +10,7 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "data_tools/temporary_registry.h"
 #include "data_tools/hdf5_handle.h"
 
@@ -412,8 +413,8 @@ DatasetWriter::DatasetWriter(const std::string& path, float fps, const std::vect
 
 DatasetWriter DatasetWriter::append(const std::string& path) {
   const h5::QuietErrors quiet;
+  check_input_file(path, "an amt-dataset HDF5 file to append to");
   std::error_code error;
-  AMT_CHECK(fs::is_regular_file(path, error), path, ": cannot append: no such file");
   prepare_temporary_file(amt::temporary_path(path));
   auto impl = std::make_unique<Impl>(path);
   fs::copy_file(path, impl->temporary, fs::copy_options::overwrite_existing, error);
@@ -729,9 +730,7 @@ DatasetReader::DatasetReader(const std::string& path) : impl_(std::make_unique<I
   const h5::QuietErrors quiet;
   Impl& r = *impl_;
   r.path = path;
-  std::error_code error;
-  AMT_CHECK(fs::exists(path, error), path, ": cannot open: no such file");
-  AMT_CHECK(fs::is_regular_file(path, error), path, ": cannot open: expected a file, found a directory or device");
+  check_input_file(path, "an amt-dataset HDF5 file");
   AMT_CHECK(h5::is_hdf5_file(path), path, ": expected an HDF5 file (format ", quoted(kDatasetFormat),
             "), found a file that is not HDF5");
   r.file = h5::open_file(path, false, path);

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "infer/bind_cache_torch.h"
 #include "train/checkpoint.h"
 
@@ -38,6 +39,7 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
 }
 
 uint64_t hash_file(const std::string& path, uint64_t hash) {
+  check_input_file(path, "a checkpoint");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": bind key: expected a readable checkpoint, found none");
   std::vector<char> chunk(size_t(1) << 20);
@@ -106,7 +108,12 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     return false;
   };
   std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) return miss("no cache file");
+  if (!std::filesystem::exists(path, error)) return miss("no cache file");
+  try {
+    check_input_file(path, "a bind cache");
+  } catch (const Error& e) {
+    return miss(e.what());
+  }
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(path);

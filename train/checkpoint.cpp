@@ -12,6 +12,7 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "data_tools/temporary_registry.h"
 #include "train/module_options.h"
 
@@ -65,8 +66,7 @@ std::vector<std::string> read_names(torch::serialize::InputArchive& archive, con
 }
 
 void open_archive(torch::serialize::InputArchive& archive, const std::string& path) {
-  std::error_code error;
-  AMT_CHECK(std::filesystem::is_regular_file(path, error), path, ": no such file (expected an amt checkpoint)");
+  check_input_file(path, "an amt checkpoint");
   try {
     archive.load_from(path);
   } catch (const std::exception& e) {

@@ -195,7 +195,8 @@ TEST(Checkpoint, SkeletonMismatchNamesBothSkeletons) {
 TEST(Checkpoint, MissingFileAndForeignFile) {
   const std::string missing = temp_path("missing.ckpt");
   fs::remove(missing);
-  EXPECT_EQ(error_of([&] { read_checkpoint_info(missing); }), missing + ": no such file (expected an amt checkpoint)");
+  EXPECT_EQ(error_of([&] { read_checkpoint_info(missing); }),
+            missing + ": cannot open: no such file (expected an amt checkpoint)");
   const std::string text = temp_path("text.ckpt");
   std::ofstream(text) << "not a checkpoint\n";
   EXPECT_EQ(error_of([&] { read_checkpoint_info(text); }).rfind(text + ": not an amt checkpoint (", 0), 0u);
