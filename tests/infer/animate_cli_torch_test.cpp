@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "data_tools/gltf_import.h"
 #include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 
@@ -174,6 +175,26 @@ TEST(AnimateCli, AFullDiskGivesOneLineErrorsAndLeavesNoTemporary) {
   for (const auto& e : fs::directory_iterator(d)) left.push_back(e.path().filename().string());
   std::sort(left.begin(), left.end());
   EXPECT_EQ(left, (std::vector<std::string>{"mask.txt", "micro.h5", "model"}));
+}
+
+// The shipped checkpoints (written before checkpoints carried payload_crc32) load and run.
+TEST(AnimateCli, TheShippedModelAnimatesAGeneratedCharacter) {
+  const fs::path dir = test::temp_dir("cli_shipped_model");
+  const std::string out = (dir / "walk.glb").string();
+  const std::string model = fs::path(AMT_ASSET_DIR).parent_path().string() + "/models/pretrained";
+  const test::CommandResult r = test::run_command(
+      shell_command({"animate", "--character", "generated:7", "--motion",
+                     std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh", "--model", model, "--frames", "4", "--out",
+                     out, "--threads", "1", "--quiet"}));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("wrote " + out + ", ", 0), 0u) << r.out;
+  const GltfVertexAnimation frames = gltf_vertex_animation(read_gltf(out), "", 30.0f);
+  ASSERT_EQ(frames.frames.size(), 4u);
+  for (const MatrixX3f& V : frames.frames) {
+    EXPECT_TRUE(V.allFinite());
+    EXPECT_LT(V.cwiseAbs().maxCoeff(), 3.0f);  // a character of about 1-2 m near the origin
+    EXPECT_GT(V.col(1).maxCoeff() - V.col(1).minCoeff(), 0.5f);
+  }
 }
 
 }  // namespace

@@ -38,11 +38,24 @@ std::vector<fs::path> files_in(const fs::path& dir) {
   return out;
 }
 
-TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
-  const Fixture f = make_fixture("bind_cache");
-  const ModelBundle bundle = load_model_bundle(f.model);
-  const CharacterData c = DatasetReader(f.data).read_character("capsules");
+// The capsules, the fixture's model and a bind cache path in a fresh fixture `name`.
+struct BindInputs {
+  Fixture f;
+  ModelBundle bundle;
+  CharacterData c;
+  std::string cache;
+};
+
+BindInputs bind_inputs(const std::string& name) {
+  Fixture f = make_fixture(name);
+  ModelBundle bundle = load_model_bundle(f.model);
+  CharacterData c = DatasetReader(f.data).read_character("capsules");
   const std::string cache = (f.dir / "capsules.bind").string();
+  return {std::move(f), std::move(bundle), std::move(c), cache};
+}
+
+TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache");
   const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
   EXPECT_FALSE(first.cache_hit);
   EXPECT_EQ(first.reason, "no cache file");
@@ -67,6 +80,27 @@ TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
   test::write_fresh_model(f.dir / "model", 8);
   const ModelBundle retrained = load_model_bundle(f.model);
   EXPECT_FALSE(bind_cached(retrained, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
+}
+
+TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache_damaged");
+  const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  // One flipped bit in the stored rest positions (found by their bytes), as a damaged disk gives.
+  std::string bytes = test::read_file_bytes(cache);
+  const at::Tensor V = first.bound.V.contiguous();
+  const size_t at = bytes.find(std::string(static_cast<const char*>(V.data_ptr()), 36));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 10] ^= 0x10;
+  std::ofstream(cache, std::ios::binary) << bytes;
+  testing::internal::CaptureStderr();
+  const BindResult second = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_FALSE(second.cache_hit);
+  EXPECT_EQ(second.reason, "damaged cache file (checksum mismatch)");
+  EXPECT_EQ(said, "amt: " + cache + ": bind cache: damaged cache file (checksum mismatch), recomputing it\n");
+  EXPECT_TRUE(at::equal(second.bound.body_weights, first.bound.body_weights));
+  // The recomputed cache replaced the damaged one.
+  EXPECT_TRUE(bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
 }
 
 TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {

@@ -98,6 +98,27 @@ TEST(Checkpoint, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
   EXPECT_EQ(test::read_file_bytes(path), good);
 }
 
+TEST(Checkpoint, AFlippedByteInAStoredParameterIsAChecksumError) {
+  test::use_one_thread();
+  torch::manual_seed(1);
+  ApparelDisplacementNet net(tiny_apparel(5));
+  const std::string path = temp_path("flipped.ckpt");
+  save_checkpoint(path, apparel_info(net), *net, nullptr);
+  ApparelDisplacementNet loaded(tiny_apparel(5));
+  EXPECT_EQ(load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr).step, 2);  // intact: loads
+  // One flipped bit in the first parameter's stored floats (found by their bytes).
+  std::string bytes = test::read_file_bytes(path);
+  const at::Tensor p0 = net->parameters()[0].detach().contiguous();
+  ASSERT_GE(p0.nbytes(), 16u);
+  const size_t at = bytes.find(std::string(static_cast<const char*>(p0.data_ptr()), 16));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 7] ^= 0x20;
+  std::ofstream(path, std::ios::binary) << bytes;
+  const std::string error = error_of([&] { load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr); });
+  EXPECT_EQ(error.rfind(path + ": payload_crc32: expected ", 0), 0u) << error;
+  EXPECT_NE(error.find("the file is damaged"), std::string::npos) << error;
+}
+
 TEST(Checkpoint, RoundTripRestoresParametersAndOptimizerState) {
   test::use_one_thread();
   torch::manual_seed(1);
