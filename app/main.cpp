@@ -1,17 +1,21 @@
 // amt: apparel-aware motion transfer. Thin program over the folder libraries; see README.md.
-#include <CLI/CLI.hpp>
-#include <Eigen/Core>
 #include <H5public.h>
+#include <pthread.h>
 #include <torch/version.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
 
+#include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <thread>
 
 #include "amt/version.h"
 #include "app/commands.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/threads.h"
 
 namespace amt::app {
@@ -31,8 +35,9 @@ std::string version_text() {
   unsigned h5_major = 0, h5_minor = 0, h5_release = 0;
   H5get_libversion(&h5_major, &h5_minor, &h5_release);
   return "amt " AMT_VERSION " (LibTorch " + std::string(TORCH_VERSION) + ", HDF5 " + std::to_string(h5_major) + "." +
-         std::to_string(h5_minor) + "." + std::to_string(h5_release) + ", Eigen " + std::to_string(EIGEN_WORLD_VERSION) +
-         "." + std::to_string(EIGEN_MAJOR_VERSION) + "." + std::to_string(EIGEN_MINOR_VERSION) + ")";
+         std::to_string(h5_minor) + "." + std::to_string(h5_release) + ", Eigen " +
+         std::to_string(EIGEN_WORLD_VERSION) + "." + std::to_string(EIGEN_MAJOR_VERSION) + "." +
+         std::to_string(EIGEN_MINOR_VERSION) + ")";
 }
 
 // OpenMP's worker threads spin for a while after each parallel region by default. Next to
@@ -47,10 +52,54 @@ void prefer_passive_openmp_waiting(char** argv) {
   execv("/proc/self/exe", argv);  // returns only on failure: then run on with the default policy
 }
 
+// SIGINT and SIGTERM remove the temporaries of the run they interrupt (data_tools/temporary_registry.h)
+// and end the process with 128 + the signal, as a shell reports a process killed by it.
+//
+// The signals are blocked in the main thread before it starts any thread, so every thread amt starts
+// (LibTorch's, OpenMP's, the sample loaders) inherits the block, and one dedicated thread takes them
+// with sigwait(): the removal runs in an ordinary thread, free of async-signal-safety limits. A thread
+// a shared library started before main (OpenBLAS starts its workers when it is loaded) does not block
+// them; should the kernel pick such a thread, the handler installed for it only forwards the signal
+// to the dedicated thread with pthread_kill (async-signal-safe).
+pthread_t g_signal_thread;
+
+void forward_to_signal_thread(int signal) {
+  pthread_kill(g_signal_thread, signal);
+}
+
+void remove_temporaries_on_termination_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  if (pthread_sigmask(SIG_BLOCK, &signals, nullptr) != 0) return;
+  std::thread waiter([signals] {
+    int signal = 0;
+    if (sigwait(&signals, &signal) != 0) return;
+    // Keeps the registry locked: a thread still writing blocks instead of creating new files.
+    const int removed = amt::remove_registered_temporaries(/*hold=*/true);
+    char line[160];
+    const int n = std::snprintf(line, sizeof(line), "\namt: stopped by %s; removed %d temporary file%s\n",
+                                signal == SIGINT ? "SIGINT" : "SIGTERM", removed, removed == 1 ? "" : "s");
+    if (n > 0) (void)!write(STDERR_FILENO, line, size_t(n));
+    _exit(128 + signal);  // no exit handlers: other threads may be inside HDF5 or LibTorch
+  });
+  g_signal_thread = waiter.native_handle();
+  waiter.detach();
+  struct sigaction forward;
+  std::memset(&forward, 0, sizeof(forward));
+  forward.sa_handler = forward_to_signal_thread;
+  sigemptyset(&forward.sa_mask);
+  forward.sa_flags = SA_RESTART;
+  sigaction(SIGINT, &forward, nullptr);
+  sigaction(SIGTERM, &forward, nullptr);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   prefer_passive_openmp_waiting(argv);
+  remove_temporaries_on_termination_signals();
   CLI::App app{"amt: apparel-aware motion transfer for stylized characters"};
   app.set_version_flag("--version", version_text());
   app.require_subcommand(1);

@@ -17,6 +17,7 @@
 #include <unordered_set>
 
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 
 namespace amt {
 
@@ -500,6 +501,7 @@ BvhFile parse_bvh(std::string_view text, const std::string& source) {
 }
 
 BvhFile read_bvh(const std::string& path) {
+  check_input_file(path, "a BVH motion");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": file: expected a readable BVH file, found an error (", std::strerror(errno), ")");
   std::ostringstream text;

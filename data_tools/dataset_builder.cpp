@@ -22,6 +22,8 @@
 #include "data_tools/body_generator.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/motion.h"
 
 #ifdef _OPENMP
@@ -66,6 +68,7 @@ std::string duration_text(double seconds) {
 
 // FNV-1a 64 of a file's bytes, as 16 hex digits (identifies the BVH files a dataset was built from).
 std::string file_hash(const std::string& path) {
+  check_input_file(path, "a BVH motion");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": cannot read (expected a readable BVH file)");
   uint64_t h = 0xcbf29ce484222325ULL;
@@ -176,6 +179,7 @@ std::string manifest_path(const std::string& dir) {
 
 // Parses a manifest file and checks its format and version.
 json read_manifest_file(const std::string& path) {
+  check_input_file(path, "a dataset build manifest");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": cannot read (expected the manifest of an amt dataset build)");
   std::stringstream text;
@@ -211,12 +215,15 @@ void check_or_write_manifest(const std::string& dir, const json& manifest) {
   }
   // Several shard processes may start at once: each writes its own temporary, the renames are atomic.
   const std::string temporary = path + "." + std::to_string(::getpid()) + ".tmp";
+  register_temporary(temporary);
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    AMT_CHECK(out.good(), temporary, ": cannot write (expected a writable output folder)");
     out << manifest.dump(2) << "\n";
     out.close();
-    AMT_CHECK(out.good(), temporary, ": write error (disk full?)");
+    if (!out.good()) {
+      discard_temporary(temporary);
+      fail(temporary, ": write: expected the manifest written, found a write error (disk full or no writable folder?)");
+    }
   }
   replace_with_temporary(temporary, path);
 }

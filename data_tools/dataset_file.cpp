@@ -10,6 +10,8 @@
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/hdf5_handle.h"
 
 namespace amt {
@@ -326,15 +328,17 @@ struct DatasetWriter::Impl {
   h5::Dataset joint_dataset;
   h5::Dataset truth_dataset;
 
-  explicit Impl(const std::string& target) : path(target), temporary(amt::temporary_path(target)) {}
+  // The temporary is registered from here on (data_tools/temporary_registry.h): a signal removes it.
+  explicit Impl(const std::string& target) : path(target), temporary(amt::temporary_path(target)) {
+    register_temporary(temporary);
+  }
 
   // Without a successful commit, the temporary file goes; the target is never touched.
   ~Impl() {
     if (committed) return;
     const h5::QuietErrors quiet;
     close_all();
-    std::error_code ignored;
-    fs::remove(temporary, ignored);
+    discard_temporary(temporary);
   }
 
   void close_all() {
@@ -396,6 +400,8 @@ DatasetWriter::DatasetWriter(const std::string& path, float fps, const std::vect
   check_fps(fps, path);
   check_joint_names(joint_names, path);
   create_parent_folder(path);
+  check_replaceable_file(path);
+  prepare_temporary_file(amt::temporary_path(path));
   impl_ = std::make_unique<Impl>(path);
   impl_->fps = fps;
   impl_->joint_names = joint_names;
@@ -407,8 +413,9 @@ DatasetWriter::DatasetWriter(const std::string& path, float fps, const std::vect
 
 DatasetWriter DatasetWriter::append(const std::string& path) {
   const h5::QuietErrors quiet;
+  check_input_file(path, "an amt-dataset HDF5 file to append to");
   std::error_code error;
-  AMT_CHECK(fs::is_regular_file(path, error), path, ": cannot append: no such file");
+  prepare_temporary_file(amt::temporary_path(path));
   auto impl = std::make_unique<Impl>(path);
   fs::copy_file(path, impl->temporary, fs::copy_options::overwrite_existing, error);
   AMT_CHECK(!error, path, ": cannot copy to the temporary file ", impl->temporary, ": ", error.message());
@@ -552,10 +559,13 @@ void DatasetWriter::end_clip() {
   w.require_clip("end_clip");
   AMT_CHECK(w.clip_frames > 0, clip_where(w.path, w.clip.name),
             ": end_clip: expected at least 1 frame (call append_frame), found 0");
+  // The closes flush the clip's last chunks: a failed one (a full disk) is an error, not a silent loss.
+  const bool closed = w.truth_dataset.close() >= 0 && w.joint_dataset.close() >= 0;
   w.truth_dataset.reset();
   w.joint_dataset.reset();
   w.clip_group.reset();
   w.clip_open = false;
+  if (!closed) h5::fail_hdf5(clip_where(w.path, w.clip.name), "end_clip: cannot write the clip's frames");
 }
 
 void DatasetWriter::commit() {
@@ -720,9 +730,7 @@ DatasetReader::DatasetReader(const std::string& path) : impl_(std::make_unique<I
   const h5::QuietErrors quiet;
   Impl& r = *impl_;
   r.path = path;
-  std::error_code error;
-  AMT_CHECK(fs::exists(path, error), path, ": cannot open: no such file");
-  AMT_CHECK(fs::is_regular_file(path, error), path, ": cannot open: expected a file, found a directory or device");
+  check_input_file(path, "an amt-dataset HDF5 file");
   AMT_CHECK(h5::is_hdf5_file(path), path, ": expected an HDF5 file (format ", quoted(kDatasetFormat),
             "), found a file that is not HDF5");
   r.file = h5::open_file(path, false, path);

@@ -15,6 +15,7 @@
 #include "data_tools/atomic_file.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "data_tools/lbs.h"
 #include "data_tools/metrics.h"
 #include "data_tools/motion.h"
@@ -43,6 +44,10 @@ struct CharacterRecord {
 };
 
 CharacterRecord read_record(const std::string& path) {
+  std::error_code error;
+  AMT_CHECK(std::filesystem::exists(path, error), path,
+            ": missing (expected the build record written beside each shard by amt dataset build)");
+  check_input_file(path, "the build record written beside each shard by amt dataset build");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": missing (expected the build record written beside each shard by amt dataset build)");
   std::stringstream text;

@@ -23,6 +23,7 @@
 #include <unordered_set>
 
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 
 namespace amt {
 
@@ -160,6 +161,26 @@ std::string percent_decode(const std::string& s) {
   return out;
 }
 
+// True when `file` resolves (links followed) to a path inside the folder `base_dir`: external buffers
+// and images of an asset must not leave its folder ("../", an absolute path, a link pointing out).
+bool inside_folder(const std::string& base_dir, const std::filesystem::path& file) {
+  std::error_code ec;
+  const std::filesystem::path base = std::filesystem::weakly_canonical(base_dir, ec);
+  if (ec) return false;
+  const std::filesystem::path target = std::filesystem::weakly_canonical(file, ec);
+  if (ec) return false;
+  const auto [b, t] = std::mismatch(base.begin(), base.end(), target.begin(), target.end());
+  return b == base.end() && t != target.end();
+}
+
+// Checks that the external file of `uri` (field `field`) lies inside the asset's folder.
+void check_inside_asset_folder(const std::string& base_dir, const std::string& uri, const std::string& src,
+                               const std::string& field) {
+  const std::filesystem::path file = std::filesystem::path(base_dir) / percent_decode(uri);
+  AMT_CHECK(inside_folder(base_dir, file), src, ": ", field, ".uri: expected a file inside the asset's folder, found '",
+            excerpt(uri), "', which resolves to ", file.lexically_normal().string(), " outside it");
+}
+
 // Checks the JSON text and its buffers before tinygltf parses it: parse errors with their byte
 // position, nesting depth, asset.version, and for every buffer a byteLength that its data can hold
 // (data URI, external file or GLB BIN chunk). tinygltf's own messages for these cases are vague or
@@ -186,6 +207,20 @@ void check_json(const char* text, size_t size, bool is_glb, const GlbLayout& glb
   const std::string version_text = version->get<std::string>();
   AMT_CHECK(version_text.rfind("2.", 0) == 0, src, ": asset.version: expected \"2.0\", found \"", excerpt(version_text),
             "\"");
+
+  // Images are not decoded, but tinygltf reads their files: an external one must be in the folder too.
+  const auto images = doc.find("images");
+  if (images != doc.end() && images->is_array() && !base_dir.empty()) {
+    for (size_t i = 0; i < images->size(); ++i) {
+      const nlohmann::json& image = (*images)[i];
+      if (!image.is_object()) continue;
+      const auto uri = image.find("uri");
+      if (uri == image.end() || !uri->is_string()) continue;
+      const std::string text = uri->get<std::string>();
+      if (text.rfind("data:", 0) != 0)
+        check_inside_asset_folder(base_dir, text, src, "images[" + std::to_string(i) + "]");
+    }
+  }
 
   const auto buffers = doc.find("buffers");
   if (buffers == doc.end()) return;
@@ -229,6 +264,7 @@ void check_json(const char* text, size_t size, bool is_glb, const GlbLayout& glb
     AMT_CHECK(!uri.empty(), src, ": ", field, ".uri: expected a data URI or a file name, found an empty string");
     AMT_CHECK(!base_dir.empty(), src, ": ", field, ".uri: expected an embedded buffer for an asset parsed from ",
               "memory, found the external file '", excerpt(uri), "'");
+    check_inside_asset_folder(base_dir, uri, src, field);
     const std::filesystem::path file = std::filesystem::path(base_dir) / percent_decode(uri);
     std::error_code ec;
     AMT_CHECK(std::filesystem::is_regular_file(file, ec), src, ": ", field, ".uri: expected the external buffer file '",
@@ -654,9 +690,9 @@ struct FileAccess {
 
 bool file_exists(const std::string& path, void* user) {
   const auto* access = static_cast<const FileAccess*>(user);
-  if (access->base_dir.empty() || path.rfind(access->base_dir, 0) != 0) return false;
+  if (access->base_dir.empty() || !inside_folder(access->base_dir, path)) return false;
   std::error_code ec;
-  return std::filesystem::is_regular_file(path, ec);
+  return std::filesystem::is_regular_file(path, ec) && std::filesystem::file_size(path, ec) <= max_input_bytes();
 }
 
 std::string expand_path(const std::string& path, void*) {
@@ -664,8 +700,12 @@ std::string expand_path(const std::string& path, void*) {
 }
 
 bool read_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
+  if (!file_exists(path, user)) {  // checked before opening: a FIFO would block
+    if (err) *err += "cannot read " + path + " (outside the asset's folder, not a regular file or too large)";
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
-  if (!file_exists(path, user) || !in.good()) {
+  if (!in.good()) {
     if (err) *err += "cannot read " + path;
     return false;
   }
@@ -1294,6 +1334,7 @@ GltfAsset parse_gltf(const uint8_t* data, size_t size, const std::string& source
 }
 
 GltfAsset read_gltf(const std::string& path) {
+  check_input_file(path, "a glTF or GLB asset");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": file: expected a readable glTF or GLB file, found none");
   const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

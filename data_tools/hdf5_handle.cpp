@@ -9,6 +9,33 @@ namespace amt::h5 {
 
 // === Errors
 
+namespace {
+
+// HDF5 closes the files still open when the process exits, from an atexit handler. A file whose
+// close failed (a full disk: its flush fails) is left half closed, and that handler then crashed in
+// H5F__close_cb (exit 139 after the one-line error). amt closes every id itself (the handles above),
+// so the handler is turned off before the library is first used: this runs when the program loads.
+[[maybe_unused]] const bool kNoExitHandler = [] {
+  H5dont_atexit();
+  return true;
+}();
+
+// HDF5's innermost message can span lines ("file write failed: time = ...\n, filename = '...', ...,
+// error message = 'File too large', ..."): its first clause and the system's message, on one line.
+std::string one_line(const std::string& message) {
+  const std::string marker = "error message = '";
+  const size_t at = message.find(marker);
+  if (at != std::string::npos) {
+    const size_t from = at + marker.size(), to = message.find('\'', from);
+    return message.substr(0, message.find(':')) + " (" + message.substr(from, to - from) + ")";
+  }
+  std::string line = message;
+  std::replace_if(line.begin(), line.end(), [](char c) { return c == '\n' || c == '\r'; }, ' ');
+  return line;
+}
+
+}  // namespace
+
 QuietErrors::QuietErrors() {
   H5Eget_auto2(H5E_DEFAULT, &previous_function_, &previous_data_);
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
@@ -34,7 +61,7 @@ std::string last_error_message() {
 }
 
 void fail_hdf5(const std::string& where, const std::string& what) {
-  const std::string detail = last_error_message();
+  const std::string detail = one_line(last_error_message());
   H5Eclear2(H5E_DEFAULT);
   if (detail.empty()) fail(where, ": ", what);
   fail(where, ": ", what, ": ", detail);
@@ -373,12 +400,12 @@ void write_dataset(hid_t loc, const std::string& name, hid_t file_type, hid_t me
     chunk[0] = std::clamp<hsize_t>(65536 / row_elements, 1, shape[0]);
     set_compression(creation.get(), chunk, where);
   }
-  const Dataset dataset(
-      H5Dcreate2(loc, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
+  Dataset dataset(H5Dcreate2(loc, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
   if (!dataset) fail_hdf5(where, "cannot create the dataset");
   if (elements > 0 && H5Dwrite(dataset.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) {
     fail_hdf5(where, "cannot write the dataset");
   }
+  if (dataset.close() < 0) fail_hdf5(where, "cannot write the dataset");  // the close flushes its chunks
 }
 
 Dataset create_frame_dataset(hid_t loc, const std::string& name, hid_t file_type, const Shape& frame_shape,

@@ -8,6 +8,7 @@
 #include <unordered_set>
 
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 
 namespace amt {
 
@@ -352,6 +353,7 @@ JointMapFile parse_joint_map(const std::string& json_text, const std::string& so
 }
 
 JointMapFile read_joint_map(const std::string& path) {
+  check_input_file(path, "a joint map");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": joint map: expected a readable file, found none");
   std::ostringstream text;

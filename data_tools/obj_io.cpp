@@ -7,6 +7,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -19,17 +21,20 @@
 #include "amt/version.h"
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 
 namespace amt {
 
 namespace {
 
 std::string read_text(const std::string& path, const char* what) {
+  check_input_file(path, what);
   std::ifstream in(path, std::ios::binary);
-  AMT_CHECK(in.good(), path, ": file: expected a readable ", what, ", found none");
+  AMT_CHECK(in.good(), path, ": file: expected ", what, " that can be read, found an error (", std::strerror(errno),
+            ")");
   std::ostringstream text;
   text << in.rdbuf();
-  AMT_CHECK(!in.bad(), path, ": file: expected a readable ", what, ", found a read error");
+  AMT_CHECK(!in.bad(), path, ": file: expected ", what, " that can be read, found a read error");
   return text.str();
 }
 
@@ -133,7 +138,7 @@ double json_number(float value) {
 // === OBJ meshes
 
 TriMesh read_obj(const std::string& path) {
-  const std::string text = read_text(path, "OBJ file");
+  const std::string text = read_text(path, "an OBJ file");
   const size_t vertex_lines = check_obj_text(text, path);
   tinyobj::ObjReader reader;
   tinyobj::ObjReaderConfig config;
@@ -228,7 +233,7 @@ std::string joints_sidecar_path(const std::string& obj_path) {
 }
 
 Skeleton read_joints_json(const std::string& path) {
-  const std::string text = read_text(path, "joint sidecar (.joints.json)");
+  const std::string text = read_text(path, "a joint sidecar (.joints.json)");
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);
@@ -361,7 +366,7 @@ ObjCharacter read_obj_character(const std::string& obj_path) {
   ObjCharacter character;
   character.mesh = read_obj(obj_path);
   const std::string sidecar = joints_sidecar_path(obj_path);
-  AMT_CHECK(std::filesystem::is_regular_file(sidecar), sidecar, ": file: expected the joint sidecar of ", obj_path,
+  AMT_CHECK(std::filesystem::exists(sidecar), sidecar, ": file: expected the joint sidecar of ", obj_path,
             ", found none");
   character.skeleton = read_joints_json(sidecar);
   return character;

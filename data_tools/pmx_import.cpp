@@ -18,6 +18,7 @@
 #include <fstream>
 
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 
 namespace amt {
 namespace {
@@ -762,12 +763,8 @@ PmxModel parse_pmx(const uint8_t* data, size_t size, const std::string& source) 
 }
 
 PmxModel read_pmx(const std::string& path) {
-  std::error_code error;
-  const std::filesystem::file_status status = std::filesystem::status(path, error);
-  AMT_CHECK(std::filesystem::exists(status), path, ": cannot open: no such file");
-  AMT_CHECK(std::filesystem::is_regular_file(status), path, ": cannot read: not a regular file");
-  const uintmax_t size = std::filesystem::file_size(path, error);
-  AMT_CHECK(!error && size < kMaxFileBytes, path, ": expected a PMX file of less than 2 GiB, found ", size, " bytes");
+  const uint64_t size = check_input_file(path, "a PMX model");
+  AMT_CHECK(size < kMaxFileBytes, path, ": expected a PMX file of less than 2 GiB, found ", size, " bytes");
   std::ifstream file(path, std::ios::binary);
   AMT_CHECK(file, path, ": cannot open the file for reading");
   std::vector<uint8_t> bytes;

@@ -6,8 +6,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 
+#include "data_tools/checksum_torch.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "infer/bind_cache_torch.h"
 #include "train/checkpoint.h"
 
@@ -38,6 +41,7 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
 }
 
 uint64_t hash_file(const std::string& path, uint64_t hash) {
+  check_input_file(path, "a checkpoint");
   std::ifstream in(path, std::ios::binary);
   AMT_CHECK(in.good(), path, ": bind key: expected a readable checkpoint, found none");
   std::vector<char> chunk(size_t(1) << 20);
@@ -88,6 +92,16 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
   return text;
 }
 
+// CRC-32 of a bind cache's payload: the key and every stored field (name and tensor) in fields() order.
+uint32_t bind_crc32(const std::string& key, const BoundCharacter& bound) {
+  uint32_t crc = crc32_update(0, key);
+  for (const auto& [name, member] : fields()) {
+    const at::Tensor& t = bound.*member;
+    if (t.defined()) crc = crc32_update(crc32_update(crc, std::string_view(name)), t);
+  }
+  return crc;
+}
+
 void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound) {
   torch::serialize::OutputArchive archive;
   archive.write("format", c10::IValue(std::string(kBindFormat)));
@@ -97,6 +111,7 @@ void save_bind(const std::string& path, const std::string& key, const BoundChara
     const at::Tensor& t = bound.*member;
     if (t.defined()) archive.write(name, t.clone());  // clone: inference tensors cannot be saved as views
   }
+  archive.write("crc32", c10::IValue(int64_t(bind_crc32(key, bound))));
   save_archive_atomically(archive, path, "bind cache");
 }
 
@@ -106,7 +121,12 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     return false;
   };
   std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) return miss("no cache file");
+  if (!std::filesystem::exists(path, error)) return miss("no cache file");
+  try {
+    check_input_file(path, "a bind cache");
+  } catch (const Error& e) {
+    return miss(e.what());
+  }
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(path);
@@ -133,6 +153,8 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     at::Tensor t;
     if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
   }
+  if (!archive.try_read("crc32", value) || !value.isInt()) return miss("no checksum (written by an older amt)");
+  if (value.toInt() != int64_t(bind_crc32(key, loaded))) return miss("damaged cache file (checksum mismatch)");
   bound = std::move(loaded);
   if (reason) reason->clear();
   return true;
@@ -146,6 +168,9 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
   if (!cache_path.empty()) {
     key = bind_key(mesh, joints, mask_override, bundle);
     result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
+    if (result.reason.rfind("damaged", 0) == 0) {
+      std::cerr << "amt: " << cache_path << ": bind cache: " << result.reason << ", recomputing it\n";
+    }
   } else {
     result.reason = "cache disabled";
   }

@@ -12,6 +12,7 @@
 #include "data_tools/body_generator.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
 #include "data_tools/gltf_import.h"
 #include "data_tools/obj_io.h"
 #include "data_tools/pmx_import.h"
@@ -277,6 +278,7 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
 }
 
 std::vector<uint8_t> read_apparel_mask(const std::string& path, int num_vertices) {
+  check_input_file(path, "an apparel mask");
   std::ifstream in(path);
   AMT_CHECK(in.good(), path, ": apparel mask: expected a readable file, found none");
   std::stringstream text;

@@ -1,12 +1,18 @@
 #include "infer/frame_writer.h"
 
+#include <fcntl.h>
+#include <stdio.h>
+
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 
 #include "data_tools/atomic_file.h"
 #include "data_tools/dataset_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/obj_io.h"
 #include "infer/glb_stream_writer.h"
 
@@ -74,49 +80,169 @@ class DatasetFrameWriter : public FrameWriter {
   int frames_ = 0;
 };
 
+// === OBJ folders: amt replaces a folder only when it wrote it
+//
+// Every OBJ folder amt writes holds the marker file kObjMarker ("amt-obj-sequence", its version and
+// frame count), written first into the temporary folder "<out>.tmp". A folder, or a temporary left
+// by a killed run, is amt's when it holds the marker and nothing but frame_*.obj files: only such a
+// folder is replaced (the output) or removed (the stale temporary). Anything else is refused.
+
+constexpr const char* kObjMarker = ".amt-output";
+constexpr const char* kObjFormat = "amt-obj-sequence";
+constexpr int kObjFormatVersion = 1;
+
+namespace fs = std::filesystem;
+
+// True for "frame_<digits>.obj".
+bool is_frame_file_name(const std::string& name) {
+  const std::string prefix = "frame_", suffix = ".obj";
+  if (name.size() <= prefix.size() + suffix.size() || name.rfind(prefix, 0) != 0) return false;
+  if (name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) return false;
+  const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+  return std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); });
+}
+
+// True when `path` is a small regular file whose first line is kObjFormat.
+bool is_obj_marker(const fs::path& path) {
+  std::error_code error;
+  if (fs::symlink_status(path, error).type() != fs::file_type::regular) return false;
+  if (fs::file_size(path, error) > 4096 || error) return false;
+  std::ifstream in(path);
+  std::string first;
+  return std::getline(in, first) && first == kObjFormat;
+}
+
+// Why `path` is not a folder amt may replace or remove: "" when it is amt's OBJ folder, else what is
+// there ("a folder amt did not write (no .amt-output in it)", "a regular file", ...). `exists` tells
+// whether anything is there at all.
+std::string foreign_obj_folder(const fs::path& path, bool& exists) {
+  std::error_code error;
+  const fs::file_type type = fs::symlink_status(path, error).type();
+  exists = type != fs::file_type::not_found;
+  if (!exists) return "";
+  if (type != fs::file_type::directory) return describe_file_type(type);
+  if (!is_obj_marker(path / kObjMarker)) return std::string("a folder amt did not write (no ") + kObjMarker + " in it)";
+  for (fs::directory_iterator it(path, error), end; !error && it != end; it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (name == kObjMarker) continue;
+    if (!is_frame_file_name(name) || it->symlink_status(error).type() != fs::file_type::regular) {
+      return "a folder of amt's holding a file amt did not write (" + name + ")";
+    }
+  }
+  if (error) return "a folder that cannot be listed (" + error.message() + ")";
+  return "";
+}
+
+// The OBJ output folder named by `path` without trailing separators ("frames/" -> "frames").
+// Refuses names of the current folder or one of its parents ('.', '..', 'a/..', '/').
+std::string obj_folder_path(const std::string& path) {
+  fs::path p = fs::path(path).lexically_normal();
+  while (!p.empty() && p.filename().empty() && p != p.root_path()) p = p.parent_path();
+  const std::string name = p.filename().string();
+  AMT_CHECK(!p.empty() && name != "." && name != ".." && p != p.root_path(), path,
+            ": --out: expected a new folder for the OBJ files, found the name of the current folder or one above "
+            "it (amt never replaces a folder it did not write)");
+  std::error_code error;
+  const fs::path target = fs::weakly_canonical(p, error), here = fs::current_path(error);
+  if (!error) {
+    const auto [t, h] = std::mismatch(target.begin(), target.end(), here.begin(), here.end());
+    AMT_CHECK(t != target.end(), path, ": --out: expected a new folder for the OBJ files, found the current folder ",
+              "or a folder that contains it (amt never replaces a folder it did not write)");
+  }
+  return p.string();
+}
+
+// Checks before any work that the OBJ folder `folder` (obj_folder_path) and its temporary can be
+// written: each is absent or amt's. Throws amt::Error naming the path otherwise.
+void check_obj_folder_target(const std::string& folder, const std::string& temporary) {
+  bool exists = false;
+  const std::string target = foreign_obj_folder(folder, exists);
+  AMT_CHECK(target.empty(), folder, ": --out: expected no file there or an OBJ folder amt wrote (with ", kObjMarker,
+            "), found ", target, "; remove it or choose another --out");
+  const std::string stale = foreign_obj_folder(temporary, exists);
+  AMT_CHECK(stale.empty(), temporary, ": --out: expected no file there or the temporary folder of an interrupted ",
+            "amt run, found ", stale, "; amt leaves it alone: remove it or choose another --out");
+}
+
+void write_obj_marker(const fs::path& folder, int frames) {
+  const std::string text = std::string(kObjFormat) + "\nversion " + std::to_string(kObjFormatVersion) + "\nframes " +
+                           std::to_string(frames) + "\n";
+  write_file_atomically((folder / kObjMarker).string(), text);
+}
+
 class ObjFolderWriter : public FrameWriter {
  public:
   ObjFolderWriter(const std::string& folder, const OutputInfo& info)
-      : folder_(folder), temporary_(temporary_path(folder)), F_(info.mesh.F) {
+      : folder_(obj_folder_path(folder)), temporary_(temporary_path(folder_)), F_(info.mesh.F) {
     digits_ = 4;
     for (int n = info.frames; n >= 10000; n /= 10) ++digits_;
+    check_obj_folder_target(folder_, temporary_);
     std::error_code error;
-    std::filesystem::remove_all(temporary_, error);
-    std::filesystem::create_directories(temporary_, error);
-    AMT_CHECK(!error, folder, ": output: expected a writable folder, found an error creating ", temporary_, " (",
+    register_temporary(temporary_);
+    created_ = true;
+    fs::remove_all(temporary_, error);  // a stale temporary of amt's (checked above)
+    AMT_CHECK(!error, temporary_, ": --out: expected to remove the stale temporary folder, found an error (",
               error.message(), ")");
+    fs::create_directories(temporary_, error);
+    AMT_CHECK(!error, folder_, ": output: expected a writable folder, found an error creating ", temporary_, " (",
+              error.message(), ")");
+    write_obj_marker(temporary_, 0);  // first, so that a killed run's temporary is recognised as amt's
   }
   ~ObjFolderWriter() override {
-    if (!finished_) {
-      std::error_code ignored;
-      std::filesystem::remove_all(temporary_, ignored);
-    }
+    if (created_ && !finished_) discard_temporary(temporary_);
   }
   void append(const MatrixX3f& V, const Transforms&) override {
     char name[32];
     std::snprintf(name, sizeof(name), "frame_%0*d.obj", digits_, frames_);
-    write_obj((std::filesystem::path(temporary_) / name).string(), TriMesh{V, F_});
+    write_obj((fs::path(temporary_) / name).string(), TriMesh{V, F_});
     ++frames_;
   }
   std::string finish() override {
     AMT_CHECK(frames_ > 0, folder_, ": frames: expected at least 1 frame, found none");
+    write_obj_marker(temporary_, frames_);
+    // Checked again: the target may have changed during the run.
+    bool exists = false;
+    const std::string target = foreign_obj_folder(folder_, exists);
+    AMT_CHECK(target.empty(), folder_, ": --out: expected no file there or an OBJ folder amt wrote (with ", kObjMarker,
+              "), found ", target, "; the output is not written");
     std::error_code error;
-    std::filesystem::remove_all(folder_, error);
-    AMT_CHECK(!error, folder_, ": output: expected to replace the old folder, found an error (", error.message(), ")");
-    std::filesystem::rename(temporary_, folder_, error);
+    if (exists) {
+      // Swap the new folder and the old one in one step, then remove the old one (now the temporary).
+      if (::renameat2(AT_FDCWD, temporary_.c_str(), AT_FDCWD, folder_.c_str(), RENAME_EXCHANGE) == 0) {
+        fs::remove_all(temporary_, error);
+        unregister_temporary(temporary_);
+        finished_ = true;
+        AMT_CHECK(!error, temporary_, ": output: expected to remove the replaced folder, found an error (",
+                  error.message(), ")");
+        return describe();
+      }
+      fs::remove_all(folder_, error);  // a file system without RENAME_EXCHANGE: remove, then rename
+      AMT_CHECK(!error, folder_, ": output: expected to replace the old folder, found an error (", error.message(),
+                ")");
+    }
+    error = rename_registered_temporary(temporary_, folder_);
     AMT_CHECK(!error, folder_, ": output: expected to rename ", temporary_, " onto it, found an error (",
               error.message(), ")");
     finished_ = true;
-    return folder_ + "/ (" + std::to_string(frames_) + " OBJ files)";
+    return describe();
   }
   int num_frames() const override { return frames_; }
 
  private:
+  std::string describe() const { return folder_ + "/ (" + std::to_string(frames_) + " OBJ files)"; }
+
   std::string folder_, temporary_;
   MatrixX3i F_;
   int digits_ = 4, frames_ = 0;
-  bool finished_ = false;
+  bool created_ = false, finished_ = false;
 };
+
+// Checks a file output (.glb, .h5) and its temporaries: each is absent or a regular file.
+void check_file_target(const std::string& path, const std::string& kind) {
+  check_replaceable_file(path);
+  prepare_temporary_file(temporary_path(path));
+  if (kind == "glb") prepare_temporary_file(GlbStreamWriter::frames_temporary_path(path));
+}
 
 }  // namespace
 
@@ -132,25 +258,36 @@ std::string output_kind(const std::string& path) {
 }
 
 void check_output_writable(const std::string& path) {
-  output_kind(path);
+  const std::string kind = output_kind(path);
+  const std::string target = kind == "obj" ? obj_folder_path(path) : path;
+  if (kind == "obj") {
+    check_obj_folder_target(target, temporary_path(target));
+  } else {
+    check_file_target(path, kind);
+  }
   try {
-    create_parent_folder(path);
+    create_parent_folder(target);
   } catch (const Error& e) {
     fail(path, ": --out: expected a writable location, found that its folder cannot be created (", e.what(), ")");
   }
-  const std::string probe = temporary_path(path);
+  // A probe file beside the output (for an OBJ folder, inside its parent).
+  const std::string probe = kind == "obj" ? target + ".probe.tmp" : temporary_path(path);
+  prepare_temporary_file(probe);
+  register_temporary(probe);
   std::FILE* f = std::fopen(probe.c_str(), "wb");
+  if (f == nullptr) unregister_temporary(probe);
   AMT_CHECK(f != nullptr, path, ": --out: expected a writable location, found that ", probe, " cannot be created");
   std::fclose(f);
-  std::error_code ignored;
-  std::filesystem::remove(probe, ignored);
+  discard_temporary(probe);
 }
 
 std::unique_ptr<FrameWriter> open_frame_writer(const std::string& path, const OutputInfo& info) {
   const std::string kind = output_kind(path);
-  // The folder must be creatable and writable before any work: probe it with a temporary file.
+  // What is at the output must be replaceable and its folder creatable before any frame is computed.
+  const std::string target = kind == "obj" ? obj_folder_path(path) : path;
+  if (kind != "obj") check_file_target(path, kind);  // an OBJ folder is checked by its writer
   try {
-    create_parent_folder(path);
+    create_parent_folder(target);
   } catch (const Error&) {
     fail(path, ": --out: expected a writable location, found that its folder cannot be created");
   }

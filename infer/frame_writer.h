@@ -7,6 +7,12 @@
 //   other  a folder of OBJ files frame_0000.obj, ... (data_tools/obj_io.h)
 // Nothing half-written: each output is built under a temporary name ("<out>.tmp", a folder for OBJ)
 // and renamed onto the output by finish(); a writer destroyed before finish() removes it.
+// Nothing lost: a .glb or .h5 output replaces only a regular file; an OBJ folder holds the marker
+// file ".amt-output" (format amt-obj-sequence, version, frame count) and replaces only a folder that
+// holds it and nothing but frame_*.obj files. The same rule recognises the temporary folder of an
+// interrupted run (the marker is written first), which is replaced; any other file or folder at the
+// output or its temporary is refused with a message and left alone, as are '.', '..' and folders
+// that contain the current folder.
 #include <memory>
 #include <string>
 #include <vector>
@@ -49,8 +55,9 @@ class FrameWriter {
 /// Throws amt::Error for .gltf (use .glb) and for .obj (name a folder for the OBJ sequence).
 std::string output_kind(const std::string& path);
 
-/// Checks that `path` can be written before any work: creates its parent folder and a probe file
-/// "<path>.tmp" (removed again). Throws amt::Error naming the path when either fails.
+/// Checks that `path` can be written before any work: what is at the output and its temporaries may be
+/// replaced (see above), its parent folder can be created and a probe file in it (removed again).
+/// Throws amt::Error naming the path when any check fails.
 void check_output_writable(const std::string& path);
 
 /// Opens the writer of `path` (output_kind). Checks that the output can be written before any frame

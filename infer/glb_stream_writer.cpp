@@ -11,6 +11,7 @@
 #include "amt/version.h"
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/temporary_registry.h"
 
 namespace amt {
 
@@ -39,7 +40,12 @@ void write_padding(std::FILE* f, size_t size, char pad, const std::string& path)
 
 GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, int num_vertices, float fps,
                                  const std::string& name, const std::string& clip)
-    : path_(path), data_path_(path + ".frames.tmp"), name_(name), clip_(clip), fps_(fps), num_vertices_(num_vertices) {
+    : path_(path),
+      data_path_(frames_temporary_path(path)),
+      name_(name),
+      clip_(clip),
+      fps_(fps),
+      num_vertices_(num_vertices) {
   AMT_CHECK(std::isfinite(fps) && fps > 0, path, ": fps: expected a positive frame rate, found ", fps);
   AMT_CHECK(num_vertices > 0, path, ": vertices: expected at least 1, found ", num_vertices);
   AMT_CHECK(F.rows() > 0, path, ": faces: expected at least 1 face, found none");
@@ -63,7 +69,12 @@ GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, in
     }
   }
   create_parent_folder(path);
+  check_replaceable_file(path);
+  prepare_temporary_file(data_path_);
+  prepare_temporary_file(temporary_path(path));
+  register_temporary(data_path_);
   data_ = std::fopen(data_path_.c_str(), "wb");
+  if (data_ == nullptr) unregister_temporary(data_path_);
   AMT_CHECK(data_ != nullptr, path, ": output: expected a writable path, found an error creating ", data_path_, " (",
             std::strerror(errno), ")");
 }
@@ -74,9 +85,8 @@ GlbStreamWriter::~GlbStreamWriter() {
 
 void GlbStreamWriter::remove_temporaries() {
   if (data_) std::fclose(data_), data_ = nullptr;
-  std::error_code ignored;
-  std::filesystem::remove(data_path_, ignored);
-  std::filesystem::remove(temporary_path(path_), ignored);
+  discard_temporary(data_path_);
+  discard_temporary(temporary_path(path_));
 }
 
 size_t GlbStreamWriter::buffered_bytes() const {
@@ -218,7 +228,9 @@ size_t GlbStreamWriter::finish() {
             " bytes");
 
   const std::string tmp = temporary_path(path_);
+  register_temporary(tmp);
   std::FILE* out = std::fopen(tmp.c_str(), "wb");
+  if (out == nullptr) remove_temporaries();
   AMT_CHECK(out != nullptr, path_, ": output: expected a writable path, found an error creating ", tmp, " (",
             std::strerror(errno), ")");
   try {
@@ -254,8 +266,7 @@ size_t GlbStreamWriter::finish() {
     remove_temporaries();
     throw;
   }
-  std::error_code ignored;
-  std::filesystem::remove(data_path_, ignored);
+  discard_temporary(data_path_);
   replace_with_temporary(tmp, path_);
   finished_ = true;
   first_.clear();

@@ -23,6 +23,9 @@ class GlbStreamWriter {
   /// Largest frame count (the sparse weights accessor addresses T (T - 1) elements with 32-bit indices).
   static constexpr int kMaxFrames = 65536;
 
+  /// The temporary file of the frame data while `path` is written: "<path>.frames.tmp".
+  static std::string frames_temporary_path(const std::string& path) { return path + ".frames.tmp"; }
+
   /// Starts a sequence at `path` (.glb) over faces F (#F by 3) of `num_vertices` vertices at `fps`.
   /// Creates the parent folder and the temporary data file "<path>.frames.tmp". `name` names the mesh
   /// and node, `clip` the animation. Throws amt::Error for bad faces, fps <= 0, or an unwritable path.

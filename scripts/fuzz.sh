@@ -15,7 +15,7 @@ out=build-fuzz
 mkdir -p "$out/generated/amt"
 printf '#pragma once\n#define AMT_VERSION "fuzz"\n' > "$out/generated/amt/version.h"
 flags=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I"$out/generated" -I/usr/include/eigen3)
-core=(data_tools/mesh.cpp data_tools/skeleton.cpp data_tools/motion.cpp data_tools/lbs.cpp)
+core=(data_tools/mesh.cpp data_tools/skeleton.cpp data_tools/motion.cpp data_tools/lbs.cpp data_tools/input_file.cpp)
 
 for target in "${targets[@]}"; do
   dir="$out/$target"

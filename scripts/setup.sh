@@ -8,7 +8,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libtorch-dev          # LibTorch 1.13, CPU
   libopenblas0-pthread  # LibTorch's BLAS: ~35x faster matrix products than the reference BLAS
-  libeigen3-dev libtinygltf-dev libtinyobjloader-dev libhdf5-dev libcli11-dev
+  libeigen3-dev libtinygltf-dev libtinyobjloader-dev libhdf5-dev zlib1g-dev libcli11-dev
   libgtest-dev libbullet-dev nlohmann-json3-dev libnanoflann-dev
   libopenvdb-dev libboost-dev libtbb-dev
   gnuplot-nox           # report plots (PNG)

@@ -43,6 +43,14 @@ std::string error_of(F&& f) {
   return "";
 }
 
+/// The bytes of a file ("" when it cannot be read).
+inline std::string read_file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
 /// What a shell command printed and its exit status (-1 when a signal ended it).
 struct CommandResult {
   int status = -1;

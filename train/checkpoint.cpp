@@ -4,11 +4,17 @@
 #include <torch/serialize/output-archive.h>
 #include <torch/utils.h>
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
 #include "data_tools/atomic_file.h"
+#include "data_tools/checksum_torch.h"
 #include "data_tools/error.h"
+#include "data_tools/input_file.h"
+#include "data_tools/temporary_registry.h"
 #include "train/module_options.h"
 
 namespace amt {
@@ -61,13 +67,26 @@ std::vector<std::string> read_names(torch::serialize::InputArchive& archive, con
 }
 
 void open_archive(torch::serialize::InputArchive& archive, const std::string& path) {
-  std::error_code error;
-  AMT_CHECK(std::filesystem::is_regular_file(path, error), path, ": no such file (expected an amt checkpoint)");
+  check_input_file(path, "an amt checkpoint");
   try {
     archive.load_from(path);
   } catch (const std::exception& e) {
     fail(path, ": not an amt checkpoint (", first_line(e), ")");
   }
+}
+
+// CRC-32 of a checkpoint's payload: its module kind, options, config, step, data fingerprint, joint
+// names and the model's tensors in their stored order (parameters, then buffers). The optimizer state
+// is not covered.
+uint32_t payload_crc32(const CheckpointInfo& info, const std::vector<at::Tensor>& tensors) {
+  uint32_t crc = crc32_update(0, module_kind_name(info.kind));
+  for (const std::string* text : {&info.options_json, &info.config_json, &info.data_fingerprint}) {
+    crc = crc32_update(crc, *text);
+  }
+  crc = crc32_update(crc, &info.step, sizeof(info.step));
+  for (const std::string& name : info.joint_names) crc = crc32_update(crc, name);
+  for (const at::Tensor& t : tensors) crc = crc32_update(crc, t);
+  return crc;
 }
 
 // Reads and checks the keys other than model/ and optimizer/.
@@ -96,25 +115,33 @@ CheckpointInfo read_info(torch::serialize::InputArchive& archive, const std::str
 // The model is stored flat: lists of the qualified parameter and buffer names, and the tensors under
 // the keys p<i> and b<i>. (Module::save uses submodule names as TorchScript attribute names, so a
 // submodule named after a Python keyword would make its archive unreadable; this form does not care.)
-void write_model(torch::serialize::OutputArchive& archive, const torch::nn::Module& model) {
+// Returns the tensors written, in order, for the payload checksum.
+std::vector<at::Tensor> write_model(torch::serialize::OutputArchive& archive, const torch::nn::Module& model) {
   c10::List<std::string> parameter_names, buffer_names;
+  std::vector<at::Tensor> written;
   int64_t i = 0;
   for (const auto& p : model.named_parameters()) {
     parameter_names.push_back(p.key());
-    archive.write("p" + std::to_string(i++), p.value().detach());
+    written.push_back(p.value().detach());
+    archive.write("p" + std::to_string(i++), written.back());
   }
   i = 0;
   for (const auto& b : model.named_buffers()) {
     buffer_names.push_back(b.key());
-    archive.write("b" + std::to_string(i++), b.value().detach(), /*is_buffer=*/true);
+    written.push_back(b.value().detach());
+    archive.write("b" + std::to_string(i++), written.back(), /*is_buffer=*/true);
   }
   archive.write("parameter_names", c10::IValue(parameter_names));
   archive.write("buffer_names", c10::IValue(buffer_names));
+  return written;
 }
 
 // Copies the stored tensors into the model's own (so optimizers keep pointing at them), checking
-// that names and shapes agree with the network built from the checkpoint's options.
-void read_model(torch::serialize::InputArchive& archive, const std::string& path, torch::nn::Module& model) {
+// that names and shapes agree with the network built from the checkpoint's options. Returns the
+// stored tensors, in order, for the payload checksum.
+std::vector<at::Tensor> read_model(torch::serialize::InputArchive& archive, const std::string& path,
+                                   torch::nn::Module& model) {
+  std::vector<at::Tensor> read;
   const auto copy_all = [&](const std::string& kind, const std::string& prefix,
                             const torch::OrderedDict<std::string, at::Tensor>& tensors, bool is_buffer) {
     const std::vector<std::string> names = read_names(archive, path, "model/" + kind + "_names", kind + "_names");
@@ -130,10 +157,12 @@ void read_model(torch::serialize::InputArchive& archive, const std::string& path
                 ", found ", stored.sizes());
       torch::NoGradGuard no_grad;
       at::Tensor(tensor).copy_(stored);
+      read.push_back(stored);
     }
   };
   copy_all("parameter", "p", model.named_parameters(), false);
   copy_all("buffer", "b", model.named_buffers(), true);
+  return read;
 }
 
 }  // namespace
@@ -174,8 +203,9 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
   archive.write("joint_names", c10::IValue(names));
 
   torch::serialize::OutputArchive model_archive(archive.compilation_unit());
-  write_model(model_archive, model);
+  const std::vector<at::Tensor> written = write_model(model_archive, model);
   archive.write("model", model_archive);
+  archive.write("payload_crc32", c10::IValue(int64_t(payload_crc32(info, written))));
   if (optimizer) {
     torch::serialize::OutputArchive optimizer_archive(archive.compilation_unit());
     optimizer->save(optimizer_archive);
@@ -188,13 +218,36 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
 void save_archive_atomically(torch::serialize::OutputArchive& archive, const std::string& path,
                              const std::string& what) {
   create_parent_folder(path);
+  check_replaceable_file(path);
   const std::string temporary = temporary_path(path);
+  prepare_temporary_file(temporary);
+  register_temporary(temporary);
+  std::FILE* out = std::fopen(temporary.c_str(), "wb");
+  if (out == nullptr) {
+    const int error = errno;
+    discard_temporary(temporary);
+    fail(temporary, ": cannot create the ", what, " (", std::strerror(error), ")");
+  }
+  // LibTorch's zip writer throws c10::Error from its destructor when a write fails, which ends the
+  // process in std::terminate. So it writes through a function that always reports success, and the
+  // first write error is kept here and reported once the archive is complete.
+  int write_error = 0;
   try {
-    archive.save_to(temporary);
+    archive.save_to([&](const void* data, size_t size) -> size_t {
+      if (write_error == 0 && size > 0 && std::fwrite(data, 1, size, out) != size) write_error = errno ? errno : EIO;
+      return size;
+    });
   } catch (const std::exception& e) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
+    std::fclose(out);
+    discard_temporary(temporary);
     fail(temporary, ": cannot write the ", what, " (", first_line(e), ")");
+  }
+  if (std::fflush(out) != 0 && write_error == 0) write_error = errno ? errno : EIO;
+  if (std::fclose(out) != 0 && write_error == 0) write_error = errno ? errno : EIO;
+  if (write_error != 0) {
+    discard_temporary(temporary);
+    fail(temporary, ": write: expected the whole ", what, " written, found an error (", std::strerror(write_error),
+         ")");
   }
   replace_with_temporary(temporary, path);
 }
@@ -213,7 +266,16 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
 
   torch::serialize::InputArchive model_archive;
   AMT_CHECK(archive.try_read("model", model_archive), path, ": model: missing");
-  read_model(model_archive, path, model);
+  const std::vector<at::Tensor> stored = read_model(model_archive, path, model);
+  // Checkpoints written before the checksum have no payload_crc32 and load unverified.
+  c10::IValue crc;
+  if (archive.try_read("payload_crc32", crc)) {
+    AMT_CHECK(crc.isInt(), path, ": payload_crc32: expected an integer, found ", crc.tagKind());
+    const uint32_t computed = payload_crc32(info, stored);
+    AMT_CHECK(int64_t(computed) == crc.toInt(), path, ": payload_crc32: expected ", crc.toInt(),
+              " (the CRC-32 stored with the parameters and options), found ", computed,
+              " over what was read: the file is damaged");
+  }
 
   if (optimizer) {
     torch::serialize::InputArchive optimizer_archive;

@@ -1,5 +1,6 @@
 #include "train/report.h"
 
+#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +15,7 @@
 #include <sstream>
 
 #include "data_tools/atomic_file.h"
+#include "data_tools/temporary_registry.h"
 #include "data_tools/error.h"
 
 extern char** environ;
@@ -119,10 +121,11 @@ bool draw(const std::string& dir, const std::string& name, const std::string& sc
          << "set output '" << tmp << "'\n"
          << script_body << "unset output\n";
   write_file_atomically(script_path, script.str());
+  register_temporary(tmp);
   const bool ok = run_gnuplot(script_path);
   std::error_code ignored;
   if (!ok || !fs::exists(tmp, ignored)) {
-    fs::remove(tmp, ignored);
+    discard_temporary(tmp);
     files.notes.push_back("gnuplot failed on " + script_path + ": " + name + ".png was not drawn.");
     return false;
   }
@@ -258,7 +261,16 @@ bool run_gnuplot(const std::string& script) {
   pid_t pid = 0;
   std::string program = "gnuplot", argument = script;
   char* argv[] = {program.data(), argument.data(), nullptr};
-  if (posix_spawnp(&pid, "gnuplot", nullptr, nullptr, argv, environ) != 0) return false;
+  // gnuplot gets an empty signal mask: amt blocks SIGINT and SIGTERM in its threads (app/main.cpp).
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  sigset_t none;
+  sigemptyset(&none);
+  posix_spawnattr_setsigmask(&attributes, &none);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK);
+  const int spawned = posix_spawnp(&pid, "gnuplot", nullptr, &attributes, argv, environ);
+  posix_spawnattr_destroy(&attributes);
+  if (spawned != 0) return false;
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
     if (errno != EINTR) return false;

@@ -715,6 +715,8 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     if (validate) log << last_validation;
     log << "\n";
     log.flush();
+    AMT_CHECK(log.good(), result.log, ": write: expected to append step ", step + 1,
+              ", found a write error (disk full?)");
 
     const int64_t done = step + 1 - first_step;
     if (o.progress && (last || std::chrono::duration<double>(now - last_print).count() >= 1.0)) {

@@ -17,6 +17,7 @@
 #include <hdf5.h>
 
 #include "data_tools/error.h"
+#include "tests/file_size_limit.h"
 
 namespace amt {
 namespace {
@@ -451,6 +452,36 @@ TEST(DatasetFile, CommitReplacesTheOldFile) {
   EXPECT_EQ(reader.fps(), 60.0f);
   EXPECT_EQ(reader.character_names(), std::vector<std::string>{"ann"});
   EXPECT_TRUE(reader.clip_names().empty());
+}
+
+TEST(DatasetFile, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
+  TempPath path;
+  write_vertex_dataset(path.str(), 2);
+  const auto size = fs::file_size(path.str());
+  const Skeleton s = chain();
+  std::string error = "(no error)";
+  {
+    const test::FileSizeLimit full_disk(1024);
+    if (!full_disk.active())
+      GTEST_SKIP() << "the file size limit (RLIMIT_FSIZE) cannot be set: no full disk to simulate";
+    try {
+      DatasetWriter writer(path.str(), 30.0f, s.names);
+      writer.add_character(tetrahedron("ann", s));
+      writer.begin_clip({"c9", "ann", "jump", "train", 30.0f, 0, GroundTruth::kVertices});
+      for (int t = 0; t < 8; ++t) writer.append_frame(joint_frame(s, t), tetrahedron("ann", s).mesh.V);
+      writer.end_clip();
+      writer.commit();
+    } catch (const Error& e) {
+      error = e.what();
+    }
+  }
+  // One line naming the file and the system's reason; the temporary is gone, the good file kept.
+  EXPECT_EQ(error.rfind(path.str() + ": ", 0), 0u) << error;
+  EXPECT_NE(error.find("file write failed (File too large)"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_EQ(fs::file_size(path.str()), size);
+  EXPECT_EQ(DatasetReader(path.str()).clip_names(), std::vector<std::string>{"c1"});
 }
 
 // === Bad files: each error names the file and the field

@@ -818,6 +818,31 @@ TEST(GltfImport, MissingExternalBuffer) {
                          (dir / "missing.bin").string() + ", found no such file");
 }
 
+TEST(GltfImport, ExternalFilesOutsideTheAssetFolderAreRefused) {
+  const auto dir = temp_dir("outside");
+  std::filesystem::create_directories(dir / "asset");
+  write_text((dir / "secret.bin").string(), std::string(36, 's'));
+  const std::string path = (dir / "asset" / "scene.gltf").string();
+  for (const std::string& uri :
+       std::vector<std::string>{"../secret.bin", "../../../../etc/passwd", (dir / "secret.bin").string()}) {
+    write_text(path, R"({"asset": {"version": "2.0"}, "buffers": [{"uri": ")" + uri + R"(", "byteLength": 36}]})");
+    const std::string message = error_of([&] { read_gltf(path); });
+    EXPECT_EQ(
+        message.rfind(path + ": buffers[0].uri: expected a file inside the asset's folder, found '" + uri + "'", 0), 0u)
+        << message;
+  }
+  // A link inside the folder that points out of it, and an image (tinygltf reads image files too).
+  std::filesystem::create_symlink(dir / "secret.bin", dir / "asset" / "link.bin");
+  write_text(path, R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "link.bin", "byteLength": 36}]})");
+  EXPECT_NE(error_of([&] { read_gltf(path); }).find("buffers[0].uri: expected a file inside the asset's folder"),
+            std::string::npos);
+  write_text(path, R"({"asset": {"version": "2.0"}, "images": [{"uri": "../secret.bin"}]})");
+  EXPECT_NE(error_of([&] { read_gltf(path); })
+                .find("images[0].uri: expected a file inside the asset's folder, found "
+                      "'../secret.bin'"),
+            std::string::npos);
+}
+
 // Inputs found by tests/fuzz/gltf_fuzz.cpp that once escaped as something other than amt::Error.
 TEST(GltfImport, FuzzFindingsAreOneLineErrors) {
   // JSON whose number overflows a double: nlohmann throws out_of_range, not parse_error.

@@ -104,7 +104,7 @@ TEST(ObjIo, BadFiles) {
   EXPECT_EQ(error_of([] { read_obj(asset("bad/no_faces.obj")); }),
             asset("bad/no_faces.obj") + ": f: expected at least 1 triangle, found none");
   EXPECT_EQ(error_of([] { read_obj(asset("missing.obj")); }),
-            asset("missing.obj") + ": file: expected a readable OBJ file, found none");
+            asset("missing.obj") + ": cannot open: no such file (expected an OBJ file)");
 }
 
 TEST(ObjIo, WriteRejectsInvalidMeshes) {
@@ -200,7 +200,7 @@ TEST(ObjIo, BadJointSidecars) {
     EXPECT_EQ(error_of([&] { read_joints_json(path); }), path + ": " + expected);
   }
   EXPECT_EQ(error_of([&] { read_obj_character((dir / "lonely.obj").string()); }),
-            (dir / "lonely.obj").string() + ": file: expected a readable OBJ file, found none");
+            (dir / "lonely.obj").string() + ": cannot open: no such file (expected an OBJ file)");
   write_text(dir / "lonely.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   EXPECT_EQ(error_of([&] { read_obj_character((dir / "lonely.obj").string()); }),
             (dir / "lonely.joints.json").string() + ": file: expected the joint sidecar of " +

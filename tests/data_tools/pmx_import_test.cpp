@@ -1525,8 +1525,10 @@ void expect_read_error(const std::string& path, const std::string& expected) {
 }
 
 TEST(PmxErrors, MissingFileAndDirectory) {
-  expect_read_error("/nonexistent/model.pmx", "/nonexistent/model.pmx: cannot open: no such file");
-  expect_read_error(AMT_ASSET_DIR, std::string(AMT_ASSET_DIR) + ": cannot read: not a regular file");
+  expect_read_error("/nonexistent/model.pmx",
+                    "/nonexistent/model.pmx: cannot open: no such file (expected a PMX model)");
+  expect_read_error(AMT_ASSET_DIR, std::string(AMT_ASSET_DIR) +
+                                       ": cannot read: expected a PMX model as a regular file, found a folder");
 }
 
 }  // namespace

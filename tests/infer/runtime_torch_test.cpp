@@ -13,6 +13,7 @@
 #include "data_tools/gltf_import.h"
 #include "data_tools/obj_io.h"
 #include "data_tools/shapes.h"
+#include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
@@ -24,36 +25,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The micro dataset (capsule character whose pelvis capsules are apparel, 30-frame walks) and its mask.
-struct Fixture {
-  fs::path dir;
-  std::string data, model, mask;
-};
+using Fixture = test::RuntimeFixture;
 
-Fixture make_fixture(const std::string& name) {
-  Fixture f;
-  f.dir = test::temp_dir(name);
-  f.data = (f.dir / "micro.h5").string();
-  test::write_micro_dataset(f.data);
-  f.model = test::write_fresh_model(f.dir / "model");
-  // The ground-truth mask as an artist's mask file, so the (untrained) segmenter does not decide.
-  const CharacterData c = DatasetReader(f.data).read_character("capsules");
-  f.mask = (f.dir / "mask.txt").string();
-  std::ofstream out(f.mask);
-  for (uint8_t m : c.apparel_mask) out << int(m) << "\n";
-  return f;
-}
+Fixture make_fixture(const std::string& name) { return test::make_runtime_fixture(name); }
 
-AnimateOptions options_for(const Fixture& f, const std::string& out) {
-  AnimateOptions o;
-  o.character.spec = f.data + ":capsules";
-  o.motion.spec = f.data + ":walk0";
-  o.model_dir = f.model;
-  o.apparel_mask = f.mask;
-  o.out = out;
-  o.verbose = false;
-  return o;
-}
+AnimateOptions options_for(const Fixture& f, const std::string& out) { return test::runtime_options(f, out); }
 
 std::vector<fs::path> files_in(const fs::path& dir) {
   std::vector<fs::path> out;
@@ -62,11 +38,24 @@ std::vector<fs::path> files_in(const fs::path& dir) {
   return out;
 }
 
-TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
-  const Fixture f = make_fixture("bind_cache");
-  const ModelBundle bundle = load_model_bundle(f.model);
-  const CharacterData c = DatasetReader(f.data).read_character("capsules");
+// The capsules, the fixture's model and a bind cache path in a fresh fixture `name`.
+struct BindInputs {
+  Fixture f;
+  ModelBundle bundle;
+  CharacterData c;
+  std::string cache;
+};
+
+BindInputs bind_inputs(const std::string& name) {
+  Fixture f = make_fixture(name);
+  ModelBundle bundle = load_model_bundle(f.model);
+  CharacterData c = DatasetReader(f.data).read_character("capsules");
   const std::string cache = (f.dir / "capsules.bind").string();
+  return {std::move(f), std::move(bundle), std::move(c), cache};
+}
+
+TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache");
   const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
   EXPECT_FALSE(first.cache_hit);
   EXPECT_EQ(first.reason, "no cache file");
@@ -91,6 +80,27 @@ TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
   test::write_fresh_model(f.dir / "model", 8);
   const ModelBundle retrained = load_model_bundle(f.model);
   EXPECT_FALSE(bind_cached(retrained, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
+}
+
+TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache_damaged");
+  const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  // One flipped bit in the stored rest positions (found by their bytes), as a damaged disk gives.
+  std::string bytes = test::read_file_bytes(cache);
+  const at::Tensor V = first.bound.V.contiguous();
+  const size_t at = bytes.find(std::string(static_cast<const char*>(V.data_ptr()), 36));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 10] ^= 0x10;
+  std::ofstream(cache, std::ios::binary) << bytes;
+  testing::internal::CaptureStderr();
+  const BindResult second = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_FALSE(second.cache_hit);
+  EXPECT_EQ(second.reason, "damaged cache file (checksum mismatch)");
+  EXPECT_EQ(said, "amt: " + cache + ": bind cache: damaged cache file (checksum mismatch), recomputing it\n");
+  EXPECT_TRUE(at::equal(second.bound.body_weights, first.bound.body_weights));
+  // The recomputed cache replaced the damaged one.
+  EXPECT_TRUE(bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
 }
 
 TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {
@@ -208,7 +218,7 @@ TEST(Animate, ObjFolderHasOneFilePerFrame) {
   o.playback.frames = 3;
   const AnimateSummary s = animate(o);
   EXPECT_EQ(s.frames, 3);
-  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{"frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
+  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{".amt-output", "frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
   EXPECT_EQ(read_obj((f.dir / "frames" / "frame_0002.obj").string()).num_vertices(), s.vertices);
   EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));
 }

@@ -16,6 +16,8 @@
 #include "data_tools/error.h"
 #include "data_tools/skeleton.h"
 #include "micro_dataset.h"
+#include "tests/file_size_limit.h"
+#include "tests/test_support.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
 #include "models/edge_conv.h"
@@ -71,6 +73,50 @@ std::string error_of(const std::function<void()>& fn) {
     return e.what();
   }
   return "(no error)";
+}
+
+TEST(Checkpoint, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
+  test::use_one_thread();
+  torch::manual_seed(1);
+  ApparelDisplacementNet net(tiny_apparel(5));
+  torch::optim::AdamW optimizer(net->parameters(), torch::optim::AdamWOptions(1e-3));
+  train_two_steps(net, optimizer);
+  const std::string path = temp_path("full_disk.ckpt");
+  save_checkpoint(path, apparel_info(net), *net, &optimizer);
+  const std::string good = test::read_file_bytes(path);
+  ASSERT_GT(good.size(), 2048u);
+  std::string error;
+  {
+    const test::FileSizeLimit full_disk(2048);
+    if (!full_disk.active())
+      GTEST_SKIP() << "the file size limit (RLIMIT_FSIZE) cannot be set: no full disk to simulate";
+    error = error_of([&] { save_checkpoint(path, apparel_info(net), *net, &optimizer); });
+  }
+  // No std::terminate from LibTorch's archive writer: one line, the temporary gone, the good file kept.
+  EXPECT_EQ(error, path + ".tmp: write: expected the whole checkpoint written, found an error (File too large)");
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  EXPECT_EQ(test::read_file_bytes(path), good);
+}
+
+TEST(Checkpoint, AFlippedByteInAStoredParameterIsAChecksumError) {
+  test::use_one_thread();
+  torch::manual_seed(1);
+  ApparelDisplacementNet net(tiny_apparel(5));
+  const std::string path = temp_path("flipped.ckpt");
+  save_checkpoint(path, apparel_info(net), *net, nullptr);
+  ApparelDisplacementNet loaded(tiny_apparel(5));
+  EXPECT_EQ(load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr).step, 2);  // intact: loads
+  // One flipped bit in the first parameter's stored floats (found by their bytes).
+  std::string bytes = test::read_file_bytes(path);
+  const at::Tensor p0 = net->parameters()[0].detach().contiguous();
+  ASSERT_GE(p0.nbytes(), 16u);
+  const size_t at = bytes.find(std::string(static_cast<const char*>(p0.data_ptr()), 16));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 7] ^= 0x20;
+  std::ofstream(path, std::ios::binary) << bytes;
+  const std::string error = error_of([&] { load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr); });
+  EXPECT_EQ(error.rfind(path + ": payload_crc32: expected ", 0), 0u) << error;
+  EXPECT_NE(error.find("the file is damaged"), std::string::npos) << error;
 }
 
 TEST(Checkpoint, RoundTripRestoresParametersAndOptimizerState) {
@@ -170,7 +216,8 @@ TEST(Checkpoint, SkeletonMismatchNamesBothSkeletons) {
 TEST(Checkpoint, MissingFileAndForeignFile) {
   const std::string missing = temp_path("missing.ckpt");
   fs::remove(missing);
-  EXPECT_EQ(error_of([&] { read_checkpoint_info(missing); }), missing + ": no such file (expected an amt checkpoint)");
+  EXPECT_EQ(error_of([&] { read_checkpoint_info(missing); }),
+            missing + ": cannot open: no such file (expected an amt checkpoint)");
   const std::string text = temp_path("text.ckpt");
   std::ofstream(text) << "not a checkpoint\n";
   EXPECT_EQ(error_of([&] { read_checkpoint_info(text); }).rfind(text + ": not an amt checkpoint (", 0), 0u);
