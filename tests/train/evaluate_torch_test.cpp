@@ -282,10 +282,12 @@ TEST(Report, WritesTablesJsonAndPlots) {
   options.progress = false;
   options.penetration = false;
   const EvaluationResult result = evaluate_model(bundle, {dir + "/lbs.h5"}, options);
-  // No ablation checkpoints in the folder: the report says so; and the inertial rule's fitted inertia.
-  ASSERT_EQ(result.notes.size(), 3u);
+  // No ablation checkpoints in the folder: the report says so; the inertial rule's fitted inertia and
+  // the anchor of the module (a fresh local module's: attachment), which the rules share.
+  ASSERT_EQ(result.notes.size(), 4u);
   EXPECT_NE(result.notes[0].find("skinning_no_geodesic.ckpt is not in the model folder"), std::string::npos);
   EXPECT_NE(result.notes[2].find("inertial rule: inertia"), std::string::npos);
+  EXPECT_EQ(result.notes[3].rfind("apparel anchor: " + bundle.apparel_anchor() + " (", 0), 0u) << result.notes[3];
 
   ReportOptions report;
   report.out_dir = dir + "/out";
