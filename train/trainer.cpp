@@ -206,8 +206,7 @@ at::Tensor skinned_body(SkinningPredictor& skinning, const CharacterTensors& c, 
 
 // S (T, N_a, 3): the rest apparel skinned to `motion` with the weights of the anchor body vertices
 // (ApparelDisplacementOptions::skinned_anchor; CharacterTensors::apparel_anchor), from the same body
-// weights as skinned_body; undefined
-// for a network without the anchor. No gradient.
+// weights as skinned_body; undefined for a network without the anchor. No gradient.
 at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const CharacterTensors& c,
                            const at::Tensor& motion) {
   if (!anchored) return {};
