@@ -17,7 +17,8 @@
 # cosine decay to 0 (the paper's 1e-4 is for far longer training than this budget). Settings beyond
 # the paper, measured in models/pretrained/README.md: the skinning predictor adds a direct KL loss on
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
-# change of each vertex's detail vector in its anchor joint's frame around the hold_offset rule,
+# change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
+# attaches) around the inertial rule (inertia 0.6),
 # with normalised inputs and target, noise on its input history and a curriculum of rollouts
 # (1, then 5, then 20 frames; a fifth of the windows rolled out from the rest pose).
 set -euo pipefail
@@ -38,7 +39,7 @@ mkdir -p "$out"
 # The small configuration: network widths of the shipped model.
 segmenter='{"encoder_widths":[32,64,128],"decoder_widths":[64,32]}'
 skinning='{"feature_widths":[32,32],"attention_widths":[16,16],"head_encoder_widths":[32,64,128],"head_decoder_widths":[64,32]}'
-apparel='{"edge_widths":[48,48,48],"decoder_widths":[48]}'
+apparel='{"edge_widths":[48,48,48],"decoder_widths":[48],"inertia":0.6}'
 refiner='{"hidden_widths":[32,32]}'
 common=(--data "$data" --out "$out" --seed "$seed" --lr 5e-4 --lr-schedule cosine --batch 1 --threads 1
         --checkpoint-every 1000 --validate-every 1000 --validation-samples 16)
