@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -469,9 +470,22 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
   for (int c = o.shard.index; c < C; c += o.shard.count) mine.push_back(c);
   report.characters_total = static_cast<int>(mine.size());
   report.clips_total = report.characters_total * M;
+  // A finished shard is done only if it reads back whole (every checksum and compressed stream): a
+  // damaged one is rebuilt, and replaced by the rename that finishes it.
   int64_t frames_to_do = 0;
+  std::map<int, std::string> damaged;  // character -> what verification found
   for (const int c : mine) {
-    if (!fs::exists(shard_path(o.out, plan.characters[c].name), error)) frames_to_do += frames_per_character;
+    const std::string shard = shard_path(o.out, plan.characters[c].name);
+    if (fs::exists(shard, error)) {
+      try {
+        DatasetReader(shard).verify();
+        continue;
+      } catch (const Error& e) {
+        damaged[c] = e.what();
+        report.damaged.push_back(e.what());
+      }
+    }
+    frames_to_do += frames_per_character;
   }
   if (o.progress) {
     *o.progress << "build: " << o.out << ": shard " << o.shard.index << "/" << o.shard.count << ": "
@@ -486,7 +500,9 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
   for (const int c : mine) {
     const PlannedCharacter& planned = plan.characters[c];
     const std::string shard = shard_path(o.out, planned.name), part = part_path(o.out, planned.name);
-    if (fs::exists(shard, error)) {
+    if (damaged.count(c)) {
+      if (o.progress) *o.progress << "build: " << damaged[c] << ": rebuilding " << planned.name << "\n";
+    } else if (fs::exists(shard, error)) {
       ++report.characters_skipped;
       report.clips_skipped += M;
       ++characters_done;

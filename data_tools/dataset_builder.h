@@ -163,6 +163,9 @@ struct DatasetBuildReport {
   /// kinematics, simulation, writing (dataset writer, commits, records).
   double seconds = 0, body_seconds = 0, dress_seconds = 0, motion_seconds = 0, simulate_seconds = 0,
          write_seconds = 0;
+  /// Finished shards that failed verification (DatasetReader::verify), one message each, in
+  /// character order; this run rebuilds them.
+  std::vector<std::string> damaged;
   /// True when stop_after_clips ended the run early.
   bool interrupted = false;
   /// Dynamic apparel bodies per built character, averaged (0 when none was built).

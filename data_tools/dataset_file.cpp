@@ -151,6 +151,7 @@ void validate_character(const CharacterData& c, const std::vector<std::string>& 
 
 /// The root attributes a reader needs.
 struct RootInfo {
+  int64_t version = 0;
   float fps = 0;
   std::vector<std::string> joint_names;
 };
@@ -181,7 +182,8 @@ RootInfo read_root(hid_t file, const std::string& path) {
   AMT_CHECK(format == kDatasetFormat, path, ": attribute 'format': expected ", quoted(kDatasetFormat), ", found ",
             quoted(format));
   const int64_t version = h5::read_int_attribute(file, "version", path);
-  AMT_CHECK(version == kDatasetVersion, path, ": attribute 'version': expected ", kDatasetVersion, ", found ", version,
+  AMT_CHECK(version >= kDatasetOldestVersion && version <= kDatasetVersion, path, ": attribute 'version': expected ",
+            kDatasetOldestVersion, " to ", kDatasetVersion, ", found ", version,
             version > kDatasetVersion ? " (written by a newer amt: update amt to read it)"
                                       : " (not a version any amt wrote)");
   const std::string units = h5::read_string_attribute(file, "units", path);
@@ -189,6 +191,7 @@ RootInfo read_root(hid_t file, const std::string& path) {
   const std::string up_axis = h5::read_string_attribute(file, "up_axis", path);
   AMT_CHECK(up_axis == "y", path, ": attribute 'up_axis': expected \"y\", found ", quoted(up_axis));
   RootInfo root;
+  root.version = version;
   root.fps = h5::read_float_attribute(file, "fps", path);
   check_fps(root.fps, path);
   root.joint_names = h5::read_string_list_attribute(file, "skeleton", path);
@@ -751,6 +754,12 @@ const std::string& DatasetReader::path() const {
 }
 float DatasetReader::fps() const {
   return impl_->root.fps;
+}
+int DatasetReader::version() const {
+  return int(impl_->root.version);
+}
+int64_t DatasetReader::verify() const {
+  return h5::verify_datasets(impl_->file.get(), impl_->path);
 }
 const std::vector<std::string>& DatasetReader::joint_names() const {
   return impl_->root.joint_names;

@@ -32,8 +32,12 @@ namespace amt {
 
 /// Value of the root attribute `format`.
 inline constexpr const char* kDatasetFormat = "amt-dataset";
-/// Value of the root attribute `version` this code writes and reads.
-inline constexpr int kDatasetVersion = 1;
+/// Value of the root attribute `version` this code writes. Version 2 has the layout of version 1
+/// with checksums: every dataset chunked with a Fletcher-32 checksum per chunk, and the HDF5 1.8
+/// file format's checksummed metadata. Readers take versions kDatasetOldestVersion to
+/// kDatasetVersion (a version 1 file is only verified as far as its compressed streams go).
+inline constexpr int kDatasetVersion = 2;
+inline constexpr int kDatasetOldestVersion = 1;
 
 /// Dense row-major int32 matrix, e.g. rig skin indices (N, K).
 using MatrixXiR = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -211,6 +215,11 @@ class DatasetReader {
   const std::string& path() const;
   /// Root attribute `fps`.
   float fps() const;
+  /// Root attribute `version` (kDatasetOldestVersion to kDatasetVersion).
+  int version() const;
+  /// Reads every dataset in full so that HDF5 checks its checksums (h5::verify_datasets): throws
+  /// amt::Error naming the file and the first damaged dataset. Returns the number of datasets.
+  int64_t verify() const;
   /// Root attribute `skeleton`: the J joint names every character and clip uses.
   const std::vector<std::string>& joint_names() const;
   /// J.

@@ -100,7 +100,8 @@ void read_shard(const std::string& character, int clips, ShardSummary& shard) {
 void print_dataset_info(const std::string& path, std::ostream& out) {
   const DatasetReader reader(path);
   out << path << "\n";
-  out << "  format    " << kDatasetFormat << ", version " << kDatasetVersion << "\n";
+  out << "  format    " << kDatasetFormat << ", version " << reader.version()
+      << (reader.version() < 2 ? " (no checksums: rebuild to have them)" : " (checksummed)") << "\n";
   out << "  fps       " << number(reader.fps()) << "\n";
   out << "  units     metres, up axis y\n";
   out << "  skeleton  " << reader.num_joints() << " joints\n";

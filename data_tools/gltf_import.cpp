@@ -1682,6 +1682,7 @@ GltfVertexAnimation gltf_vertex_animation(const GltfAsset& asset, const std::str
     }
     AMT_CHECK(frame.allFinite(), src, ": animation \"", out.clip, "\": expected finite vertex positions, found NaN ",
               "or infinity at frame ", t);
+    if (t == 0) check_plausible_extent(TriMesh{frame, out.faces}, src + ": animation \"" + out.clip + "\" frame 0");
     out.frames.push_back(std::move(frame));
   }
   return out;

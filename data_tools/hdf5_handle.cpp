@@ -91,7 +91,15 @@ bool is_hdf5_file(const std::string& path) {
 
 File create_file(const std::string& path, const std::string& where) {
   const PropertyList access = strong_close_access();
-  File file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get()));
+  // The 1.8 file format and later checksum their metadata (object headers, B-trees, heaps): a
+  // damaged header is an error on open rather than garbage.
+  if (H5Pset_libver_bounds(access.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0) {
+    fail_hdf5(where, "cannot select the HDF5 file format");
+  }
+  // No modification times in the root group's header either (the 1.8 format stores them).
+  const PropertyList creation(H5Pcreate(H5P_FILE_CREATE));
+  if (!creation || H5Pset_obj_track_times(creation.get(), 0) < 0) fail_hdf5(where, "cannot create the file");
+  File file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, creation.get(), access.get()));
   if (!file) fail_hdf5(where, "cannot create the HDF5 file " + path);
   return file;
 }
@@ -378,10 +386,12 @@ hsize_t element_count(const Shape& shape) {
   return std::accumulate(shape.begin(), shape.end(), hsize_t{1}, std::multiplies<hsize_t>());
 }
 
-void set_compression(hid_t creation, const Shape& chunk, const std::string& where) {
-  if (H5Pset_chunk(creation, static_cast<int>(chunk.size()), chunk.data()) < 0 || H5Pset_shuffle(creation) < 0 ||
-      H5Pset_deflate(creation, 4) < 0) {
-    fail_hdf5(where, "cannot set up chunked compression");
+// Chunked storage with HDF5's Fletcher-32 checksum of every chunk as stored (after compression when
+// `compress`), which every read verifies: a flipped byte in the payload is an error, not a value.
+void set_chunks(hid_t creation, const Shape& chunk, bool compress, const std::string& where) {
+  if (H5Pset_chunk(creation, static_cast<int>(chunk.size()), chunk.data()) < 0 ||
+      (compress && (H5Pset_shuffle(creation) < 0 || H5Pset_deflate(creation, 4) < 0)) || H5Pset_fletcher32(creation) < 0) {
+    fail_hdf5(where, "cannot set up chunked, checksummed storage");
   }
 }
 
@@ -394,11 +404,11 @@ void write_dataset(hid_t loc, const std::string& name, hid_t file_type, hid_t me
   if (!space || !creation) fail_hdf5(where, "cannot create the dataspace " + shape_text(shape));
   H5Pset_obj_track_times(creation.get(), 0);  // reproducible bytes, see create_group
   const hsize_t elements = element_count(shape);
-  if (compress && !shape.empty() && elements >= 4096) {
+  if (!shape.empty() && elements > 0) {
     Shape chunk = shape;
     const hsize_t row_elements = std::max<hsize_t>(1, elements / shape[0]);
     chunk[0] = std::clamp<hsize_t>(65536 / row_elements, 1, shape[0]);
-    set_compression(creation.get(), chunk, where);
+    set_chunks(creation.get(), chunk, compress && elements >= 4096, where);
   }
   Dataset dataset(H5Dcreate2(loc, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
   if (!dataset) fail_hdf5(where, "cannot create the dataset");
@@ -420,7 +430,7 @@ Dataset create_frame_dataset(hid_t loc, const std::string& name, hid_t file_type
   const PropertyList creation(H5Pcreate(H5P_DATASET_CREATE));
   if (!space || !creation) fail_hdf5(where, "cannot create the dataspace " + shape_text(shape));
   H5Pset_obj_track_times(creation.get(), 0);  // reproducible bytes, see create_group
-  set_compression(creation.get(), chunk, where);
+  set_chunks(creation.get(), chunk, true, where);
   Dataset dataset(H5Dcreate2(loc, name.c_str(), file_type, space.get(), H5P_DEFAULT, creation.get(), H5P_DEFAULT));
   if (!dataset) fail_hdf5(where, "cannot create the dataset");
   return dataset;
@@ -476,6 +486,59 @@ void read_frames(hid_t dataset, hsize_t first, hsize_t count, hid_t memory_type,
   if (H5Dread(dataset, memory_type, memory.get(), file_space.get(), H5P_DEFAULT, out) < 0) {
     fail_hdf5(where, "cannot read frames");
   }
+}
+
+// === Verification
+
+namespace {
+
+struct VerifyState {
+  std::string where;
+  std::vector<uint8_t> buffer;
+  int64_t datasets = 0;
+  std::string error;  // the first failure; the callback must not throw through HDF5's C frames
+};
+
+void verify_object(hid_t group, const char* name, VerifyState& state) {
+  const std::string at = state.where + ": /" + name;
+  const Object object(H5Oopen(group, name, H5P_DEFAULT));
+  if (!object) fail_hdf5(at, "cannot open (damaged object header?)");
+  if (H5Iget_type(object.get()) != H5I_DATASET) return;
+  const Datatype type(H5Dget_type(object.get()));
+  if (!type) fail_hdf5(at, "cannot read the element type");
+  if (H5Tis_variable_str(type.get()) > 0 || H5Tdetect_class(type.get(), H5T_VLEN) > 0) return;  // none in amt files
+  const Shape shape = dataset_shape(object.get(), at);
+  state.buffer.resize(size_t(element_count(shape)) * H5Tget_size(type.get()));
+  if (!state.buffer.empty() &&
+      H5Dread(object.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, state.buffer.data()) < 0) {
+    fail_hdf5(at, "damaged data (its checksum or compressed stream does not match)");
+  }
+  ++state.datasets;
+}
+
+herr_t verify_link(hid_t group, const char* name, const H5L_info_t* info, void* data) {
+  auto& state = *static_cast<VerifyState*>(data);
+  if (info->type != H5L_TYPE_HARD) return 0;
+  try {
+    verify_object(group, name, state);
+  } catch (const std::exception& e) {
+    state.error = e.what();
+    return 1;  // stops the walk
+  }
+  return 0;
+}
+
+}  // namespace
+
+int64_t verify_datasets(hid_t file, const std::string& where) {
+  VerifyState state{where, {}, 0, {}};
+  const herr_t status = H5Lvisit(file, H5_INDEX_NAME, H5_ITER_NATIVE, verify_link, &state);
+  if (!state.error.empty()) {
+    H5Eclear2(H5E_DEFAULT);
+    throw Error(state.error);
+  }
+  if (status < 0) fail_hdf5(where, "cannot walk the file's objects (damaged file?)");
+  return state.datasets;
 }
 
 }  // namespace amt::h5

@@ -202,8 +202,9 @@ H5T_class_t element_class(hid_t dataset, const std::string& where);
 std::string element_type_name(hid_t dataset);
 
 /// Writes a whole dataset of `shape` from `data` (row-major, product(shape) elements of
-/// `memory_type`) stored as `file_type`. With `compress`, arrays of 4096 elements or more are
-/// chunked along dimension 0 (about 64k elements a chunk) and compressed (shuffle + deflate 4).
+/// `memory_type`) stored as `file_type`, chunked along dimension 0 (about 64k elements a chunk) with
+/// a Fletcher-32 checksum of each chunk that reads verify. With `compress`, arrays of 4096 elements
+/// or more are also compressed (shuffle + deflate 4).
 void write_dataset(hid_t loc, const std::string& name, hid_t file_type, hid_t memory_type, const void* data,
                    const Shape& shape, bool compress, const std::string& where);
 
@@ -215,7 +216,7 @@ void write_dataset(hid_t loc, const std::string& name, const T* data, const Shap
 }
 
 /// Creates an empty dataset of frames: shape (0, frame_shape...), dimension 0 extendible without
-/// limit, one frame per chunk, compressed with shuffle + deflate level 4.
+/// limit, one frame per chunk, compressed with shuffle + deflate level 4 and checksummed.
 Dataset create_frame_dataset(hid_t loc, const std::string& name, hid_t file_type, const Shape& frame_shape,
                              const std::string& where);
 
@@ -229,5 +230,11 @@ void read_dataset(hid_t dataset, hid_t memory_type, void* out, const std::string
 /// Reads frames [first, first + count) along dimension 0 (a hyperslab; nothing else is read) into
 /// `out` (count * product(shape[1:]) elements of `memory_type`).
 void read_frames(hid_t dataset, hsize_t first, hsize_t count, hid_t memory_type, void* out, const std::string& where);
+
+/// Reads every dataset of the file in full, so that HDF5 verifies each chunk's checksum (Fletcher-32
+/// in files written since dataset version 2) and each compressed stream (zlib's Adler-32 in every
+/// file), and the metadata on the way. Throws amt::Error "where: /path: damaged data ..." at the
+/// first failure; returns the number of datasets read.
+int64_t verify_datasets(hid_t file, const std::string& where);
 
 }  // namespace amt::h5

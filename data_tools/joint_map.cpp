@@ -491,6 +491,32 @@ JointMapping map_to_canonical(const std::vector<std::string>& names, const std::
     }
     infer(foot, children == 1 ? only_child : src[ankle]);
   }
+
+  // 4. Nonsense a user map (or an odd file) can produce is refused with the names. Structure shares
+  // file joints on purpose (three spine joints on one, a foot on its ankle), and a file with fewer
+  // spine joints may be mapped so by hand; any other two canonical joints on one file joint are
+  // a mistake (both hips on one thigh). A canonical joint whose file joint lies strictly above its
+  // canonical parent's (pelvis and head swapped) would turn the skeleton inside out.
+  const auto spine_like = [](int c) { return c == kPelvis || c == kSpine1 || c == kSpine2 || c == kSpine3; };
+  const std::vector<std::string>& canonical_names = canonical_joint_names();
+  for (int c = 0; c < kCanonicalJointCount; ++c) {
+    for (int d = 0; d < c; ++d) {
+      if (src[c] != src[d] || mapping.kind[c] == JointMatchKind::kStructure ||
+          mapping.kind[d] == JointMatchKind::kStructure || (spine_like(c) && spine_like(d))) {
+        continue;
+      }
+      fail(source, ": joint map: canonical joints ", canonical_names[d], " and ", canonical_names[c],
+           " are both on the file's joint ", names[src[c]], ": expected one file joint per canonical joint");
+    }
+  }
+  const std::vector<int32_t>& canonical_parents = canonical_joint_parents();
+  for (int c = 0; c < kCanonicalJointCount; ++c) {
+    const int p = canonical_parents[c];
+    if (p < 0 || src[c] == src[p] || !is_ancestor_or_self(src[c], src[p], parents)) continue;
+    fail(source, ": joint map: canonical joint ", canonical_names[c], " is on the file's joint ", names[src[c]],
+         ", which lies above ", names[src[p]], " (its parent ", canonical_names[p],
+         "'s joint) in the file's skeleton: expected a joint below it");
+  }
   return mapping;
 }
 

@@ -22,6 +22,49 @@ void validate_mesh(const TriMesh& mesh, const std::string& source) {
       AMT_CHECK(v >= 0 && v < n, source, ": faces: expected vertex indices in [0, ", n, "), found ", v, " in face ", f);
     }
   }
+  check_plausible_extent(mesh, source);
+}
+
+namespace {
+
+float median_of(std::vector<float>& values) {
+  if (values.empty()) return 0.0f;
+  auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
+}  // namespace
+
+void check_plausible_extent(const TriMesh& mesh, const std::string& source) {
+  const Eigen::Index n = mesh.V.rows();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    AMT_CHECK(mesh.V.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate, source, ": vertices: expected coordinates within ",
+              kMaxCoordinate, " of the origin, found ", mesh.V(i, 0), " ", mesh.V(i, 1), " ", mesh.V(i, 2), " at vertex ", i);
+  }
+  // Medians, not means or a bounding box: one absurd vertex must not move the yardstick it is judged by.
+  Eigen::Vector3f centre;
+  std::vector<float> values(static_cast<size_t>(n));
+  for (int c = 0; c < 3; ++c) {
+    for (Eigen::Index i = 0; i < n; ++i) values[size_t(i)] = mesh.V(i, c);
+    centre[c] = median_of(values);
+  }
+  values.clear();
+  values.reserve(size_t(mesh.F.rows()) * 3);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int32_t a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+      if (a >= 0 && a < n && b >= 0 && b < n) values.push_back((mesh.V.row(a) - mesh.V.row(b)).norm());
+    }
+  }
+  const float bound = kMaxEdgeLengths * median_of(values);
+  if (!(bound > 0.0f)) return;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const float r = (mesh.V.row(i).transpose() - centre).norm();
+    AMT_CHECK(r <= bound, source, ": vertices: expected positions within ", kMaxEdgeLengths,
+              " median edge lengths (", bound, ") of the mesh's centre, found ", mesh.V(i, 0), " ", mesh.V(i, 1), " ",
+              mesh.V(i, 2), " at vertex ", i, " (", r, " from the centre)");
+  }
 }
 
 MatrixX2i unique_edges(const MatrixX3i& F) {

@@ -19,9 +19,19 @@ struct TriMesh {
   int num_faces() const { return static_cast<int>(F.rows()); }
 };
 
-/// Throws amt::Error unless the mesh is usable: at least one vertex and one face, finite positions,
-/// face indices in [0, #V). `source` names the file or object in the message ("a.h5: /characters/x").
+/// Throws amt::Error unless the mesh is usable: at least one vertex and one face, finite and
+/// plausible positions (check_plausible_extent), face indices in [0, #V). `source` names the file or
+/// object in the message ("a.h5: /characters/x").
 void validate_mesh(const TriMesh& mesh, const std::string& source);
+
+/// The plausibility bounds of positions (finite but absurd values, such as one vertex at 1e15 from a
+/// flipped byte): no coordinate beyond kMaxCoordinate (10 km in metres), and no vertex farther from
+/// the mesh's centre (the per-axis median of V) than kMaxEdgeLengths times the median length of the
+/// faces' sides (skipped when that median is 0). Throws amt::Error naming `source`, the vertex and its
+/// value.
+inline constexpr float kMaxCoordinate = 1e4f;
+inline constexpr float kMaxEdgeLengths = 1e4f;
+void check_plausible_extent(const TriMesh& mesh, const std::string& source);
 
 // === Connectivity
 

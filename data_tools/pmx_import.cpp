@@ -19,6 +19,7 @@
 
 #include "data_tools/error.h"
 #include "data_tools/input_file.h"
+#include "data_tools/mesh.h"
 
 namespace amt {
 namespace {
@@ -309,6 +310,8 @@ class PmxParser {
     read_header();
     read_vertices();
     read_faces();
+    // Finite but absurd positions (a flipped exponent byte) stop here, in the file's own units.
+    check_plausible_extent(TriMesh{model_.vertices.positions, model_.faces}, model_.source);
     read_textures();
     read_materials();
     read_bones();

@@ -49,32 +49,70 @@ RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, 
       resolver_(F, mask_, penetration),
       resolve_(resolve) {
   stepper_ = std::make_unique<PipelineStepper>(bundle_, bound_, rest_apparel_history(bound_), PipelineStages::kFull);
+  c10::InferenceMode inference;
+  const at::Tensor extent = std::get<0>(bound_.V.max(0)) - std::get<0>(bound_.V.min(0));
+  output_bound_ = 10.0f * std::max(extent.norm().item<float>(), 0.1f);
+  const at::Tensor root = bound_.joints[0].contiguous();
+  root_rest_ = Eigen::Vector3f(root[0].item<float>(), root[1].item<float>(), root[2].item<float>());
 }
 
 void RuntimeSession::advance(const at::Tensor& joint_transforms) {
   stepper_->step(joint_transforms);
 }
 
+namespace {
+
+// The first row of `P` (n, 3) that is non-finite or farther than `bound` from `root`, or -1.
+int64_t first_exploded(const float* P, int64_t n, const Eigen::Vector3f& root, float bound) {
+  for (int64_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f p(P[3 * i], P[3 * i + 1], P[3 * i + 2]);
+    if (!p.allFinite() || (p - root).norm() > bound) return i;
+  }
+  return -1;
+}
+
+}  // namespace
+
+void RuntimeSession::check_output(const float* P, int64_t n, const Transforms& joint_transforms,
+                                  const char* stage) const {
+  const int64_t i = first_exploded(P, n, apply(joint_transforms.at(0), root_rest_), output_bound_);
+  if (i < 0) return;
+  fail("frame ", frame_, ": ", stage, ": expected finite positions within ", output_bound_,
+       " m of the root joint (10 rest sizes), found ", P[3 * i], " ", P[3 * i + 1], " ", P[3 * i + 2], " at vertex ", i,
+       " (a damaged model or an absurd motion; nothing was written)");
+}
+
 FrameTimes RuntimeSession::step(const Transforms& joint_transforms, MatrixX3f& V, PenetrationReport* report) {
   FrameTimes times;
   auto start = Clock::now();
   {
-    const at::Tensor V_hat = stepper_->step(transforms_tensor(joint_transforms), &times.stages);
+    const StepOutput out = stepper_->step_detailed(transforms_tensor(joint_transforms), &times.stages);
     c10::InferenceMode inference;
-    const at::Tensor c = V_hat.contiguous();
+    const at::Tensor c = out.V_hat.contiguous();
     V.resize(c.size(0), 3);
     std::memcpy(V.data(), c.data_ptr<float>(), size_t(c.numel()) * sizeof(float));
+    if (first_exploded(V.data(), V.rows(), apply(joint_transforms.at(0), root_rest_), output_bound_) >= 0) {
+      // Name the first stage whose output is already broken (B̂, then Â, then the refiner's V̂).
+      for (const auto& [part, stage] : {std::pair{out.B_hat, "skinning (LBS)"}, std::pair{out.A_hat, "apparel module"}}) {
+        if (!part.defined() || part.numel() == 0) continue;
+        const at::Tensor p = part.contiguous();
+        check_output(p.data_ptr<float>(), p.size(0), joint_transforms, stage);
+      }
+      check_output(V.data(), V.rows(), joint_transforms, "refiner");
+    }
   }
   times.model = seconds_since(start);
   start = Clock::now();
   if (resolve_) {
     const PenetrationReport r = resolver_.resolve(V);
     if (report) *report = r;
+    check_output(V.data(), V.rows(), joint_transforms, "penetration resolution");
   } else if (report) {
     report->before = report->after = resolver_.measure(V, &report->carried);
     report->pushed = report->smoothed = 0;
   }
   times.penetration = seconds_since(start);
+  ++frame_;
   return times;
 }
 

@@ -39,7 +39,10 @@ class RuntimeSession {
                  PenetrationOptions penetration = {});
 
   /// Runs frame T^(t) (J transforms on the bundle's skeleton): V̂ into `V` (#V by 3), then the
-  /// penetration resolution when on. Returns the stage times (output excluded).
+  /// penetration resolution when on. Returns the stage times (output excluded). Throws amt::Error
+  /// naming the frame (counted from 0, lead-in excluded) and the first stage whose output is
+  /// non-finite or exploded (a vertex farther from the root joint than 10 times the rest mesh's
+  /// bounding-box diagonal): nothing absurd reaches the writer.
   FrameTimes step(const Transforms& joint_transforms, MatrixX3f& V, PenetrationReport* report = nullptr);
 
   /// Runs frame T^(t) without resolution or copy-out (lead-in frames).
@@ -57,6 +60,10 @@ class RuntimeSession {
   std::unique_ptr<PipelineStepper> stepper_;
   PenetrationResolver resolver_;
   bool resolve_;
+  float output_bound_ = 0;   // metres from the root joint
+  Eigen::Vector3f root_rest_;  // the root joint at rest
+  int64_t frame_ = 0;       // frames of step() so far
+  void check_output(const float* P, int64_t n, const Transforms& joint_transforms, const char* stage) const;
 };
 
 /// (J, 3, 4) float tensor of J transforms.

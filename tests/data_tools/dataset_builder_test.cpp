@@ -243,6 +243,29 @@ TEST_F(DatasetBuilder, DamagedManifestGivesOneLineErrors) {
   }
 }
 
+TEST_F(DatasetBuilder, DamagedFinishedShardIsFoundAndRebuilt) {
+  const fs::path dir = test::temp_dir("dataset_builder_damaged");
+  fs::copy(*reference_, dir);
+  const fs::path shard = dir / "character-0001.h5";
+  // Flip one byte of the rest joints (stored uncompressed: their bytes are in the file as written).
+  const MatrixX3f joints = DatasetReader(shard.string()).read_character("character-0001").skeleton.rest_joints;
+  std::string bytes = bytes_of(shard);
+  const size_t at = bytes.find(std::string(reinterpret_cast<const char*>(joints.data()), 12));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 1] ^= 0x10;
+  std::ofstream(shard, std::ios::binary | std::ios::trunc) << bytes;
+  EXPECT_NE(error_of([&] { DatasetReader(shard.string()).verify(); }).find("rest_joints: damaged data"), std::string::npos);
+
+  const DatasetBuildReport r = build_dataset(tiny_build_options(dir));
+  ASSERT_EQ(r.damaged.size(), 1u);
+  EXPECT_EQ(r.damaged[0].rfind(shard.string() + ": /characters/character-0001/rest_joints: damaged data", 0), 0u)
+      << r.damaged[0];
+  EXPECT_EQ(r.characters_skipped, 1);
+  EXPECT_EQ(r.characters_built, 1);
+  EXPECT_EQ(folder_bytes(dir), folder_bytes(*reference_));
+  EXPECT_EQ(DatasetReader(shard.string()).verify(), DatasetReader((*reference_ / "character-0001.h5").string()).verify());
+}
+
 TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) {
   const fs::path dir = test::temp_dir("dataset_builder_bad");
   fs::copy(*reference_, dir);

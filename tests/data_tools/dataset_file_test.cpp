@@ -528,7 +528,7 @@ TEST(DatasetFileErrors, WrongVersion) {
   write_vertex_dataset(path.str());
   RawFile(path.str()).set_int_attribute("version", 7);
   expect_error([&] { DatasetReader reader(path.str()); },
-               {path.str(), "attribute 'version': expected 1, found 7", "newer amt"});
+               {path.str(), "attribute 'version': expected 1 to 2, found 7", "newer amt"});
   expect_error([&] { DatasetWriter::append(path.str()); }, {path.str(), "attribute 'version'"});
   // The append failed before anything changed: no temporary file is left behind.
   EXPECT_FALSE(fs::exists(path.str() + ".tmp"));

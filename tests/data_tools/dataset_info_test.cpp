@@ -101,7 +101,7 @@ TEST(DatasetInfo, PrintsCountsSharesAndSplits) {
   print_dataset_info(path, out);
   fs::remove(path);
   const std::string text = out.str();
-  EXPECT_TRUE(contains(text, "amt-dataset, version 1")) << text;
+  EXPECT_TRUE(contains(text, "amt-dataset, version 2 (checksummed)")) << text;
   EXPECT_TRUE(contains(text, "fps       30")) << text;
   EXPECT_TRUE(contains(text, "3 joints")) << text;
   EXPECT_TRUE(contains(text, "characters: 2 (train 1, test 1)")) << text;

@@ -809,6 +809,19 @@ TEST(GltfImport, NanPosition) {
             "found nan at element 1");
 }
 
+TEST(GltfImport, AbsurdPositionIsRejected) {
+  // Finite, so the accessor reader lets it through; the plausibility bound of data_tools/mesh.h does not.
+  AssetBuilder b;
+  const int pos = b.floats({0, 0, 0, 1, 1e15f, 0, 0, 1, 0}, "VEC3", 3);
+  b.doc["meshes"] = {{{"primitives", {{{"attributes", {{"POSITION", pos}}}}}}}};
+  b.doc["nodes"] = {{{"mesh", 0}}};
+  const std::string message = error_of([&] { gltf_vertex_animation(b.parse("huge.gltf")); });
+  EXPECT_EQ(message.rfind("huge.gltf: animation \"", 0), 0u) << message;
+  EXPECT_NE(message.find("frame 0: vertices: expected coordinates within 10000 of the origin, found 1 1e+15 0 at vertex 1"),
+            std::string::npos)
+      << message;
+}
+
 TEST(GltfImport, MissingExternalBuffer) {
   const auto dir = temp_dir("missing");
   const std::string path = (dir / "scene.gltf").string();

@@ -356,6 +356,26 @@ TEST(JointMap, UserMapOverridesTheTables) {
   }
 }
 
+TEST(JointMap, ContradictoryUserMapsAreRefusedWithTheNames) {
+  const Hierarchy h = mixamo("");
+  const auto error = [&](const std::string& json) {
+    try {
+      map_to_canonical(h.names, h.parents, parse_joint_map(json, "map.json"), "walk.bvh");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error(R"({"left_hip": "LeftUpLeg", "right_hip": "LeftUpLeg"})"),
+            "walk.bvh: joint map: canonical joints left_hip and right_hip are both on the file's joint LeftUpLeg: "
+            "expected one file joint per canonical joint");
+  EXPECT_EQ(error(R"({"pelvis": "Head", "head": "Hips"})"),
+            "walk.bvh: joint map: canonical joint neck is on the file's joint Neck, which lies above Head (its "
+            "parent spine3's joint) in the file's skeleton: expected a joint below it");
+  // Two spine joints on one file joint is how a short spine is mapped by hand: accepted.
+  EXPECT_EQ(error(R"({"spine1": "Spine", "spine2": "Spine"})"), "no error");
+}
+
 TEST(JointMap, UnknownSkeletonMapsWithAUserMap) {
   Hierarchy robot;
   robot.add("base", "").add("torso", "base").add("cap", "torso").add("dome", "cap");

@@ -44,7 +44,8 @@ bool bitwise_equal(const MatrixX3f& a, const MatrixX3f& b) {
 TEST(ObjIo, RoundTripIsBitExact) {
   const auto dir = temp_dir("round_trip");
   TriMesh mesh = uv_sphere(Eigen::Vector3f(0.1f, 1.7f, -0.3f), 0.37f, 16, 9);
-  // Values that need all 9 digits, tiny and huge magnitudes, negative zero, denormals.
+  // Values that need all 9 digits, tiny and large magnitudes (up to the plausibility bound of
+  // data_tools/mesh.h), negative zero, denormals.
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> uniform(-1.0f, 1.0f);
   for (int i = 0; i < mesh.num_vertices(); ++i) {
@@ -52,9 +53,9 @@ TEST(ObjIo, RoundTripIsBitExact) {
   }
   mesh.V(0, 0) = -0.0f;
   mesh.V(1, 0) = 1e-30f;
-  mesh.V(2, 1) = -3.4e38f;
+  mesh.V(2, 1) = -98.7654321f;
   mesh.V(3, 2) = std::numeric_limits<float>::denorm_min();
-  mesh.V(4, 0) = 123456.789f;
+  mesh.V(4, 0) = 123.456789f;
   mesh.V(5, 1) = 0.1f;
   const std::string path = (dir / "sphere.obj").string();
   write_obj(path, mesh);
@@ -105,6 +106,13 @@ TEST(ObjIo, BadFiles) {
             asset("bad/no_faces.obj") + ": f: expected at least 1 triangle, found none");
   EXPECT_EQ(error_of([] { read_obj(asset("missing.obj")); }),
             asset("missing.obj") + ": cannot open: no such file (expected an OBJ file)");
+}
+
+TEST(ObjIo, AbsurdVertexIsRejected) {
+  const std::string path = (temp_dir("absurd") / "flipped.obj").string();
+  std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv 0 1e15 0\nf 1 2 3\n";
+  EXPECT_EQ(error_of([&] { read_obj(path); }),
+            path + ": vertices: expected coordinates within 10000 of the origin, found 0 1e+15 0 at vertex 2");
 }
 
 TEST(ObjIo, WriteRejectsInvalidMeshes) {

@@ -795,7 +795,9 @@ PmxModel sample_model(bool v21, int extra_vertices = 0) {
   v.sdef_r1.setZero(n, 3);
   v.edge_scale.resize(n);
   for (int i = 0; i < n; ++i) {
-    const float t = static_cast<float>(i);
+    // The extra vertices repeat every 1000 so that 40000 of them stay within the importers'
+    // plausibility bound (data_tools/mesh.h).
+    const float t = static_cast<float>(i % 1000);
     v.positions.row(i) << 0.1f * t - 0.3f, 10 + 0.5f * t, 0.2f * t - 0.7f;
     v.normals.row(i) = Eigen::RowVector3f(0.3f, 0.4f, t - 2.5f).normalized();
     v.uvs.row(i) << 0.1f * t, 1 - 0.05f * t;
@@ -1408,6 +1410,14 @@ TEST(PmxErrors, HugeAndNegativeCounts) {
     EXPECT_EQ(parse_error(b),
               "model.pmx: offset " + offset_of(w, section) + ": " + section + ": expected a count >= 0, found -16");
   }
+}
+
+TEST(PmxErrors, AbsurdPositionIsRejected) {
+  const Written w = write_pmx(sample_model(false), WriteOptions());
+  std::vector<uint8_t> b = w.bytes;
+  patch_f32(b, w.offsets.at("vertices[2].position"), 1e15f);
+  EXPECT_EQ(parse_error(b), "model.pmx: vertices: expected coordinates within 10000 of the origin, found 1e+15 11 -0.3 "
+                            "at vertex 2");
 }
 
 TEST(PmxErrors, NonFiniteAndOutOfRangeNumbers) {

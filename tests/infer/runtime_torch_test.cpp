@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <torch/utils.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -101,6 +102,39 @@ TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
   EXPECT_TRUE(at::equal(second.bound.body_weights, first.bound.body_weights));
   // The recomputed cache replaced the damaged one.
   EXPECT_TRUE(bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
+}
+
+TEST(RuntimeSession, ExplodedOutputNamesTheFrameAndTheStage) {
+  const auto [f, bundle, c, cache] = bind_inputs("runtime_exploded");
+  const BindResult bind = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "");
+  const Transforms T = DatasetReader(f.data).read_joint_transforms("walk0", 0, 2);
+  const Transforms first(T.begin(), T.begin() + 22), second(T.begin() + 22, T.end());
+  MatrixX3f V;
+  {
+    RuntimeSession healthy(bundle, bind.bound, c.mesh.F, true);
+    EXPECT_NO_THROW(healthy.step(first, V));
+    EXPECT_TRUE(V.allFinite());
+  }
+  // A broken apparel module (NaN weights): its output is the first one that is wrong.
+  ModelBundle broken = load_model_bundle(f.model);
+  torch::NoGradGuard no_grad;
+  const auto apparel = broken.local_apparel() ? broken.apparel_dynamics->parameters() : broken.apparel->parameters();
+  for (auto p : apparel) p.fill_(std::nanf(""));
+  {
+    RuntimeSession session(broken, bind.bound, c.mesh.F, false);
+    const std::string e = test::error_of([&] { session.step(first, V); });
+    EXPECT_EQ(e.rfind("frame 0: apparel module: expected finite positions within ", 0), 0u) << e;
+    EXPECT_NE(e.find("found nan nan nan at vertex 0"), std::string::npos) << e;
+  }
+  // A refiner that moves everything by 1 km: finite, but exploded; frame 1 is named.
+  broken = load_model_bundle(f.model);
+  {
+    RuntimeSession session(broken, bind.bound, c.mesh.F, false);
+    session.step(first, V);
+    for (auto p : broken.refiner->parameters()) p.fill_(1e3f);
+    const std::string e = test::error_of([&] { session.step(second, V); });
+    EXPECT_EQ(e.rfind("frame 1: refiner: expected finite positions within ", 0), 0u) << e;
+  }
 }
 
 TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {
