@@ -108,6 +108,19 @@ TEST(SurfaceShape, FacesOfOppositeOrientationAreAnError) {
   }
 }
 
+TEST(SurfaceShape, DegenerateTrianglesAreAnError) {
+  Positions V(4, 3);
+  V << 0, 0, 0, 1, 0, 0, 2, 0, 0, 1, 0, 1;  // corners 0, 1, 2 on a line
+  MatrixX3i F(2, 3);
+  F << 0, 2, 1, 1, 2, 3;
+  try {
+    SurfaceShapeTerm term(V, F);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("degenerate triangle next to the edge (1, 2)"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Positional, HoldsTheBoundaryCoordinateAlongTheBone) {
   // A 4 by 4 sheet beside a bone parallel to the x axis.
   Positions V;
