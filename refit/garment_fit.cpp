@@ -4,6 +4,7 @@
 #include "refit/curve_shape.h"
 #include "refit/positional.h"
 #include "refit/surface_shape.h"
+#include "refit/triangle_intersections.h"
 
 namespace amt::refit {
 
@@ -18,6 +19,7 @@ NewtonResult fit_garment(const Positions& source, const MatrixX3i& F_garment, co
   Positions x(n_g + n_a, 3);
   x << start, avatar_V;
   const std::vector<uint8_t>& fixed = mesh.vertex_obstacle;  // the avatar stays where it is
+  check_garment_avatar_start(mesh, x, static_cast<int>(F_garment.rows()), "garment fit", "the avatar's");
 
   const SurfaceShapeTerm surface(source, F_garment, options.weights.surface_weight);
   const CurveShapeTerm curve(source, F_garment, options.weights.curve_weight);

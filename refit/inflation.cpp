@@ -8,6 +8,7 @@
 #include "refit/curve_shape.h"
 #include "refit/positional.h"
 #include "refit/surface_shape.h"
+#include "refit/triangle_intersections.h"
 
 namespace amt::refit {
 namespace {
@@ -93,6 +94,10 @@ InflationResult inflate_avatar(const Positions& source_garment, const MatrixX3i&
             " joints, the target ", target_joints.rows());
 
   const CollisionMesh mesh = make_garment_avatar_mesh(source_garment, F_garment, avatar.target, avatar.F);
+  Positions start(n_g + n_a, 3);
+  start << source_garment, avatar.shrunk;
+  check_garment_avatar_start(mesh, start, static_cast<int>(F_garment.rows()), "inflation",
+                             "the shrunk avatar's");
 
   // x(q) = base + J q: the garment as it is, the avatar at shrunk + t (target - shrunk).
   LinearPositions map;
