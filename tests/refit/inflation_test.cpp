@@ -21,14 +21,16 @@ Positions arm(double length) {
 }
 
 TEST(Inflation, ASleeveRefitOntoALongerArmEndsIntersectionFree) {
-  // A sleeve (radius 6 cm, 10 sides) made for a 30 cm arm; the target arm is 45 cm long and of radius 8 cm
-  // (8 sides), wider than the sleeve: as it inflates it pushes the sleeve out through the barrier.
+  // A sleeve (radius 6 cm, 10 sides) made for a 30 cm arm; the target arm is 45 cm long and of radius
+  // 10 cm (8 sides, faces 9.2 cm from the axis). Stretched 1.5 times along the arm, the sleeve would keep
+  // its shape at radius 9 cm (the shape terms allow uniform scaling): the arm must push it out further,
+  // through the barrier, as it inflates.
   const MatrixX2i bones = skeleton_bones({-1, 0, 1});
   const Positions source_joints = arm(0.30), target_joints = arm(0.45);
   Positions sleeve, body;
   MatrixX3i sleeve_F, body_F;
   test::tube(6, 10, 0.02, 0.28, 0.06, &sleeve, &sleeve_F, 0.0, /*staggered=*/true);
-  test::tube(8, 8, 0.0, 0.45, 0.08, &body, &body_F, 0.0, /*staggered=*/true);
+  test::tube(8, 8, 0.0, 0.45, 0.10, &body, &body_F, 0.0, /*staggered=*/true);
   const ShrunkAvatar avatar = shrink_to_skeleton(body, body_F, target_joints, source_joints, bones,
                                                  nearest_bones(body, target_joints, bones));
   InflationOptions options;
@@ -73,7 +75,7 @@ TEST(Inflation, ASleeveRefitOntoALongerArmEndsIntersectionFree) {
   for (int v = 0; v < fitted.rows(); ++v) radius += fitted.row(v).tail<2>().norm() / fitted.rows();
   std::printf("cuff at x = %.4f m (source 0.28), mean sleeve radius %.4f m (source 0.06)\n", cuff_x, radius);
   EXPECT_GT(cuff_x, 0.35);
-  EXPECT_GT(radius, 0.08);  // around the arm, which it cannot cross
+  EXPECT_GT(radius, 0.095);  // wider than its uniformly scaled shape (0.09): pushed by the arm
 }
 
 }  // namespace
