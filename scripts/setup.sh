@@ -14,6 +14,7 @@ packages=(
   libopenvdb-dev libboost-dev libtbb-dev
   gnuplot-nox           # report plots (PNG)
   libstb-dev            # stb_image_write: PNG pictures of characters (data_tools/render.h)
+  libcgal-dev           # exact triangle-triangle intersection tests of the garment refit (tests/refit)
 )
 
 # Node runs the Khronos glTF validator (npm package gltf-validator) in tests. The machine image may

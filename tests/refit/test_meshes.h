@@ -1,0 +1,32 @@
+#pragma once
+// Small meshes for the refit tests.
+#include <cmath>
+
+#include "data_tools/types.h"
+#include "refit/contact.h"
+
+namespace amt::refit::test {
+
+/// An open tube (a sleeve, an arm) of `rings` rings of `around` vertices around the x axis, from x0 to
+/// x1, radius r. `wobble` moves the vertices along x by wobble sin(3φ) (non-planar rims, for torsion);
+/// `staggered` turns every other ring by half a step.
+inline void tube(int rings, int around, double x0, double x1, double r, Positions* V, MatrixX3i* F,
+                 double wobble = 0.0, bool staggered = false) {
+  V->resize(rings * around, 3);
+  for (int i = 0; i < rings; ++i)
+    for (int k = 0; k < around; ++k) {
+      const double phi = 2 * M_PI * (k + (staggered ? 0.5 * (i % 2) : 0.0)) / around;
+      V->row(i * around + k) << x0 + (x1 - x0) * i / (rings - 1) + wobble * std::sin(3 * phi), r * std::cos(phi),
+          r * std::sin(phi);
+    }
+  F->resize(2 * (rings - 1) * around, 3);
+  int f = 0;
+  for (int i = 0; i + 1 < rings; ++i)
+    for (int k = 0; k < around; ++k) {
+      const int a = i * around + k, b = i * around + (k + 1) % around, c = a + around, d = b + around;
+      F->row(f++) << a, b, d;
+      F->row(f++) << a, d, c;
+    }
+}
+
+}  // namespace amt::refit::test
