@@ -271,7 +271,8 @@ function layout() {
   const fitWidth = size.x / (2 * Math.tan(vfov / 2) * camera.aspect);
   const distance = 1.05 * Math.max(fitHeight, fitWidth) + 0.35 * size.z;
   controls.target.copy(centre);
-  camera.position.set(centre.x + 0.15 * distance, centre.y + 0.2 * distance, centre.z + distance);
+  // From the front and the side (characters face +z): the apparel behind them shows beside the body.
+  camera.position.set(centre.x + 0.6 * distance, centre.y + 0.2 * distance, centre.z + 0.8 * distance);
   camera.near = distance / 100, camera.far = distance * 20;
   camera.updateProjectionMatrix();
   controls.update();
