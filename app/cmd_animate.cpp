@@ -30,9 +30,12 @@ void add_animate_command(CLI::App& app) {
   auto* model = cmd->add_option("--model", o->model_dir,
                                 "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner). " +
                                     repository_default_help(kDefaultModel));
-  cmd->add_option("--out", o->out,
-                  "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ files")
-      ->required();
+  auto* out = cmd->add_option("--out", o->out,
+                              "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ "
+                              "files (optional with --html)");
+  auto* html = cmd->add_option("--html", o->html_dir,
+                               "Also write a viewer folder: prediction.glb beside skinning.glb and the web page that "
+                               "plays them (open it with amt view DIR)");
   cmd->add_option("--picture", o->picture, "Also write a PNG of four frames spread over the clip (a quick look)");
   cmd->add_option("--bind", o->bind_path,
                   "Bind cache file (default: <out>.bind beside the output; 'none' disables it)");
@@ -58,8 +61,14 @@ void add_animate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No mapping and progress lines on stderr");
   add_threads_option(*cmd);
-  cmd->callback([o, model, fps, bvh_scale, no_resolve, quiet] {
+  cmd->callback([o, model, out, html, fps, bvh_scale, no_resolve, quiet] {
     AnimateOptions options = *o;
+    AMT_CHECK(out->count() > 0 || html->count() > 0, "--out: expected an output (or --html DIR), found none");
+    if (html->count() > 0) {
+      options.viewer_dir = find_repository_folder("viewer");
+      AMT_CHECK(!options.viewer_dir.empty(), "--html: expected the repository's viewer/ folder above the amt program "
+                "or in the current folder, found none: run amt from a checkout");
+    }
     if (model->count() == 0) options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
     if (*fps > 0) options.playback.fps = float(*fps);
     if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;

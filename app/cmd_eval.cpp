@@ -6,11 +6,15 @@
 #include <string>
 #include <vector>
 
+#include <algorithm>
+
 #include "amt/version.h"
 #include "app/commands.h"
 #include "app/repository.h"
 #include "data_tools/error.h"
+#include "data_tools/viewer_folder.h"
 #include "train/evaluate.h"
+#include "train/evaluation_viewer.h"
 #include "train/report.h"
 #include "train/samples.h"
 
@@ -23,6 +27,8 @@ struct EvalCommand {
   std::string out;
   std::string protocol = "both";
   std::string predictions;
+  std::string viewer;  // empty: no viewer folder
+  int viewer_frames = 120;
   EvaluateOptions options;
   bool no_plots = false, quiet = false;
   std::string command_line;
@@ -41,6 +47,19 @@ void print_summary(const EvaluationResult& result, const ReportFiles& files) {
 }
 
 void run(const EvalCommand& command) {
+  // The viewer folder is checked before the evaluation, which can take hours.
+  std::string viewer_dir;
+  if (!command.viewer.empty()) {
+    AMT_CHECK(command.predictions.empty(), "--viewer: expected a model to run on the picked clips, found --predictions");
+    const auto& methods = command.options.methods;
+    AMT_CHECK(methods.empty() || std::find(methods.begin(), methods.end(), "full") != methods.end(),
+              "--viewer: expected the method full among --methods (the clips are picked by its PMD_a)");
+    viewer_dir = find_repository_folder("viewer");
+    AMT_CHECK(!viewer_dir.empty(), "--viewer: expected the repository's viewer/ folder above the amt program or in the "
+              "current folder, found none: run amt from a checkout");
+    viewer_page_files(viewer_dir);
+    check_viewer_folder(command.viewer);
+  }
   EvaluateOptions options = command.options;
   options.paper = command.protocol == "paper" || command.protocol == "both";
   options.rollout = command.protocol == "rollout" || command.protocol == "both";
@@ -60,6 +79,14 @@ void run(const EvalCommand& command) {
     const ModelBundle bundle = load_model_bundle(model);
     report.model_dir = model;
     result = evaluate_model(bundle, shards, options);
+    print_summary(result, write_report(result, report));
+    if (!command.viewer.empty()) {
+      const EvaluationViewer viewer =
+          write_evaluation_viewer(bundle, result, command.viewer, viewer_dir, command.viewer_frames);
+      std::cout << "wrote the viewer folder " << viewer.dir << " (" << viewer.clips
+                << " clips: prediction, ground truth and skinning): open it with amt view " << viewer.dir << std::endl;
+    }
+    return;
   }
   print_summary(result, write_report(result, report));
 }
@@ -89,6 +116,12 @@ void add_eval_command(CLI::App& app) {
                    "body_apparel, full, full_gt_mask, no_geodesic, sort_by_geodesic");
   eval->add_option("--predictions", command->predictions,
                    "Score a dataset file of predicted vertices (amt animate --out x.h5) instead of running a model");
+  eval->add_option("--viewer", command->viewer,
+                   "Also write a viewer folder: the worst, median and best clip of each subset by the full model's "
+                   "PMD_a, prediction beside ground truth and skinning (open it with amt view DIR)");
+  eval->add_option("--viewer-frames", command->viewer_frames, "Frames per clip in the viewer folder (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   eval->add_flag("--no-penetration", [command](int64_t) { command->options.penetration = false; },
                  "Skip the penetration measure (a winding-number tree per frame)");
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");

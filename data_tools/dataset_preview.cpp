@@ -34,6 +34,7 @@ int export_dataset_preview(const std::string& dataset_path, const std::string& o
   GltfExportOptions export_options;
   export_options.name = info.character;
   export_options.clip = clip;
+  export_options.apparel_mask = character.apparel_mask;  // the ground-truth mask, tinted (COLOR_0)
   export_gltf_mesh_sequence(out_path, character.mesh.F, frames, info.fps, export_options);
   return count;
 }

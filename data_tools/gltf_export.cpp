@@ -124,6 +124,16 @@ class ModelBuilder {
     model_.asset.extras = tinygltf::Value(extras);
   }
 
+  /// Adds the apparel tint's record to asset.extras (after set_format).
+  void set_apparel_record(int apparel_vertices) {
+    tinygltf::Value::Object extras = model_.asset.extras.Get<tinygltf::Value::Object>();
+    extras["apparel_color"] = tinygltf::Value(tinygltf::Value::Array{
+        tinygltf::Value(int(kApparelColor[0])), tinygltf::Value(int(kApparelColor[1])),
+        tinygltf::Value(int(kApparelColor[2]))});
+    extras["apparel_vertices"] = tinygltf::Value(apparel_vertices);
+    model_.asset.extras = tinygltf::Value(extras);
+  }
+
  private:
   tinygltf::Model model_;
 };
@@ -181,6 +191,16 @@ void check_fps(float fps, const std::string& path) {
 
 // === Mesh sequence
 
+std::vector<uint8_t> apparel_vertex_colors(const std::vector<uint8_t>& apparel_mask, const std::string& path) {
+  std::vector<uint8_t> colors(apparel_mask.size() * 4);
+  for (size_t i = 0; i < apparel_mask.size(); ++i) {
+    AMT_CHECK(apparel_mask[i] <= 1, path, ": apparel mask: expected 0 or 1, found ", int(apparel_mask[i]),
+              " at vertex ", i);
+    std::memcpy(&colors[4 * i], apparel_mask[i] ? kApparelColor : kBodyColor, 4);
+  }
+  return colors;
+}
+
 void export_gltf_mesh_sequence(const std::string& path, const MatrixX3i& F, const std::vector<MatrixX3f>& frames,
                                float fps, const GltfExportOptions& options) {
   check_fps(fps, path);
@@ -205,6 +225,20 @@ void export_gltf_mesh_sequence(const std::string& path, const MatrixX3i& F, cons
   primitive.attributes["POSITION"] =
       builder.add_floats(rows_to_floats(frames[0]), TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
   primitive.indices = add_indices(builder, F, N);
+  if (!options.apparel_mask.empty()) {
+    AMT_CHECK(options.apparel_mask.size() == size_t(N), path, ": apparel mask: expected ", N, " entries, found ",
+              options.apparel_mask.size());
+    const std::vector<uint8_t> colors = apparel_vertex_colors(options.apparel_mask, path);
+    tinygltf::Accessor color;
+    color.bufferView = builder.add_view(colors.data(), colors.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    color.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    color.normalized = true;
+    color.type = TINYGLTF_TYPE_VEC4;
+    color.count = size_t(N);
+    model.accessors.push_back(color);
+    primitive.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+    builder.set_apparel_record(int(std::count(options.apparel_mask.begin(), options.apparel_mask.end(), 1)));
+  }
   tinygltf::Mesh mesh;
   mesh.name = options.name;
   tinygltf::Value::Array target_names;

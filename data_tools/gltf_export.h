@@ -16,6 +16,10 @@
 //   deltas + 12 bytes (keyframe time, sparse index, weight) + about 0.4 KB of JSON (the target's
 //   accessor with min/max, its buffer view); once: 12 N bytes of frame 0 and 6 F or 12 F bytes of
 //   indices. No normals are written (three.js then shades flat, Blender computes them).
+//   - the apparel mask, when given, travels as the vertex colour COLOR_0 (UNSIGNED_BYTE, normalized,
+//     VEC4, 4 N bytes): kApparelColor on apparel vertices, kBodyColor on the others, so any glTF
+//     viewer tints the apparel and a reader recovers the mask exactly (blue channel above red);
+//     asset.extras then also records "apparel_color" (its RGB) and "apparel_vertices" (the count).
 //
 // Rigged character construction:
 //   - node 0 is the mesh (skin 0) at the scene root without a transform; nodes 1 .. J are the joints in
@@ -57,11 +61,24 @@ enum class GltfContainer {
 ///              and every other path kGlb
 ///   name       name of the mesh and node (mesh sequence) or of the mesh node (rigged character)
 ///   clip       name of the animation
+///   apparel_mask  mesh sequence only: #V entries 0/1 written as the COLOR_0 tint (above), or empty
+///              for none
 struct GltfExportOptions {
   std::optional<GltfContainer> container;
   std::string name = "amt_mesh";
   std::string clip = "amt_animation";
+  std::vector<uint8_t> apparel_mask;
 };
+
+// === The apparel tint (COLOR_0 of a mesh sequence)
+
+/// RGBA of apparel and body vertices in COLOR_0 (the apparel blue of data_tools/render.h's pictures).
+inline constexpr uint8_t kApparelColor[4] = {61, 120, 214, 255};
+inline constexpr uint8_t kBodyColor[4] = {204, 199, 191, 255};
+
+/// COLOR_0 bytes of a mask: 4 #V bytes, RGBA per vertex. Throws amt::Error naming `path` for entries
+/// other than 0 and 1.
+std::vector<uint8_t> apparel_vertex_colors(const std::vector<uint8_t>& apparel_mask, const std::string& path);
 
 // === Export
 

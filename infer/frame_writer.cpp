@@ -35,7 +35,8 @@ std::string megabytes(uintmax_t bytes) {
 class GlbWriter : public FrameWriter {
  public:
   GlbWriter(const std::string& path, const OutputInfo& info)
-      : path_(path), writer_(path, info.mesh.F, info.mesh.num_vertices(), info.fps, info.character, info.clip) {}
+      : path_(path), writer_(path, info.mesh.F, info.mesh.num_vertices(), info.fps, info.character, info.clip,
+                info.apparel_mask) {}
   void append(const MatrixX3f& V, const Transforms&) override { writer_.append(V); }
   std::string finish() override { return path_ + ", " + megabytes(writer_.finish()); }
   int num_frames() const override { return writer_.num_frames(); }

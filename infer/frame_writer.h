@@ -1,6 +1,7 @@
 #pragma once
 // The runtime's outputs, written frame by frame so that memory stays flat however long the motion:
-//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/gltf_export.h)
+//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/gltf_export.h),
+//          the apparel mask in use as its COLOR_0 tint
 //   .h5    the dataset format (data_tools/dataset_file.h): the character (rest mesh, canonical skeleton,
 //          the apparel mask in use, skinning weights) and one clip whose `vertices` are the predictions,
 //          so that `amt eval --predictions` can score it against the ground truth of the same names

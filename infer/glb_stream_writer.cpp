@@ -11,6 +11,7 @@
 #include "amt/version.h"
 #include "data_tools/atomic_file.h"
 #include "data_tools/error.h"
+#include "data_tools/gltf_export.h"
 #include "data_tools/temporary_registry.h"
 
 namespace amt {
@@ -18,7 +19,7 @@ namespace amt {
 namespace {
 
 constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
-constexpr int kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125;
+constexpr int kFloat = 5126, kUnsignedByte = 5121, kUnsignedShort = 5123, kUnsignedInt = 5125;
 
 size_t padded4(size_t n) {
   return (n + 3) / 4 * 4;
@@ -39,7 +40,8 @@ void write_padding(std::FILE* f, size_t size, char pad, const std::string& path)
 }  // namespace
 
 GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, int num_vertices, float fps,
-                                 const std::string& name, const std::string& clip)
+                                 const std::string& name, const std::string& clip,
+                                 const std::vector<uint8_t>& apparel_mask)
     : path_(path),
       data_path_(frames_temporary_path(path)),
       name_(name),
@@ -49,6 +51,12 @@ GlbStreamWriter::GlbStreamWriter(const std::string& path, const MatrixX3i& F, in
   AMT_CHECK(std::isfinite(fps) && fps > 0, path, ": fps: expected a positive frame rate, found ", fps);
   AMT_CHECK(num_vertices > 0, path, ": vertices: expected at least 1, found ", num_vertices);
   AMT_CHECK(F.rows() > 0, path, ": faces: expected at least 1 face, found none");
+  if (!apparel_mask.empty()) {
+    AMT_CHECK(apparel_mask.size() == size_t(num_vertices), path, ": apparel mask: expected ", num_vertices,
+              " entries, found ", apparel_mask.size());
+    colors_ = apparel_vertex_colors(apparel_mask, path);
+    apparel_vertices_ = int(std::count(apparel_mask.begin(), apparel_mask.end(), 1));
+  }
   index_component_ = num_vertices <= 65535 ? kUnsignedShort : kUnsignedInt;
   index_count_ = size_t(F.size());
   const size_t size = index_component_ == kUnsignedShort ? 2 : 4;
@@ -90,7 +98,8 @@ void GlbStreamWriter::remove_temporaries() {
 }
 
 size_t GlbStreamWriter::buffered_bytes() const {
-  return first_.capacity() * sizeof(float) + index_bytes_.capacity() + delta_.capacity() * sizeof(float);
+  return first_.capacity() * sizeof(float) + index_bytes_.capacity() + colors_.capacity() +
+         delta_.capacity() * sizeof(float);
 }
 
 void GlbStreamWriter::append(const MatrixX3f& V) {
@@ -156,6 +165,15 @@ size_t GlbStreamWriter::finish() {
                        {"componentType", index_component_},
                        {"count", index_count_},
                        {"type", "SCALAR"}});
+  nlohmann::json attributes = {{"POSITION", 0}};
+  if (!colors_.empty()) {
+    accessors.push_back({{"bufferView", add_view(colors_.size(), kArrayBuffer)},
+                         {"componentType", kUnsignedByte},
+                         {"normalized", true},
+                         {"count", N},
+                         {"type", "VEC4"}});
+    attributes["COLOR_0"] = int(accessors.size()) - 1;
+  }
   nlohmann::json targets = nlohmann::json::array(), names = nlohmann::json::array();
   for (int k = 1; k < T; ++k) {
     const float* b = &bounds_[size_t(k - 1) * 6];
@@ -178,7 +196,7 @@ size_t GlbStreamWriter::finish() {
     sparse_indices.push_back(uint32_t(k * targets_count + (k - 1))), ones.push_back(1.0f);
   for (int k = 0; k < T; ++k) times[size_t(k)] = float(double(k) / double(fps_));
   nlohmann::json mesh = {{"name", name_}};
-  nlohmann::json primitive = {{"attributes", {{"POSITION", 0}}}, {"indices", 1}, {"mode", 4}};
+  nlohmann::json primitive = {{"attributes", attributes}, {"indices", 1}, {"mode", 4}};
   nlohmann::json animations = nlohmann::json::array();
   if (T > 1) {
     primitive["targets"] = targets;
@@ -208,11 +226,13 @@ size_t GlbStreamWriter::finish() {
   }
   mesh["primitives"] = {primitive};
   const size_t bin_length = offset;
+  nlohmann::json extras = {{"amt_format", "mesh-sequence"}, {"amt_format_version", 1}, {"fps", double(fps_)}};
+  if (!colors_.empty()) {
+    extras["apparel_color"] = {kApparelColor[0], kApparelColor[1], kApparelColor[2]};
+    extras["apparel_vertices"] = apparel_vertices_;
+  }
   nlohmann::json gltf = {
-      {"asset",
-       {{"version", "2.0"},
-        {"generator", std::string("amt ") + AMT_VERSION},
-        {"extras", {{"amt_format", "mesh-sequence"}, {"amt_format_version", 1}, {"fps", double(fps_)}}}}},
+      {"asset", {{"version", "2.0"}, {"generator", std::string("amt ") + AMT_VERSION}, {"extras", extras}}},
       {"scene", 0},
       {"scenes", {{{"nodes", {0}}}}},
       {"nodes", {{{"name", name_}, {"mesh", 0}}}},
@@ -245,6 +265,7 @@ size_t GlbStreamWriter::finish() {
     write_bytes(out, first_.data(), frame_bytes, tmp);
     write_bytes(out, index_bytes_.data(), index_bytes_.size(), tmp);
     write_padding(out, index_bytes_.size(), '\0', tmp);
+    write_bytes(out, colors_.data(), colors_.size(), tmp);  // 4 N bytes: aligned
     std::FILE* data = std::fopen(data_path_.c_str(), "rb");
     AMT_CHECK(data != nullptr, data_path_, ": read: expected the frame data written before, found none");
     std::vector<char> chunk(size_t(1) << 20);

@@ -5,8 +5,8 @@
 // the binary chunk copied from the data file) under "<path>.tmp" and renames it onto the path. Memory
 // is the first frame, the faces and 24 bytes of bounds per frame, whatever the frame count.
 //
-// Binary chunk order: frame 0 positions, indices, the T - 1 delta targets in frame order, the sparse
-// weight indices and values, the keyframe times. A writer destroyed before finish() removes its
+// Binary chunk order: frame 0 positions, indices, the apparel tint COLOR_0 (when a mask is given), the
+// T - 1 delta targets in frame order, the sparse weight indices and values, the keyframe times. A writer destroyed before finish() removes its
 // temporary files and leaves the path untouched.
 #include <cstdint>
 #include <cstdio>
@@ -28,9 +28,12 @@ class GlbStreamWriter {
 
   /// Starts a sequence at `path` (.glb) over faces F (#F by 3) of `num_vertices` vertices at `fps`.
   /// Creates the parent folder and the temporary data file "<path>.frames.tmp". `name` names the mesh
-  /// and node, `clip` the animation. Throws amt::Error for bad faces, fps <= 0, or an unwritable path.
+  /// and node, `clip` the animation; `apparel_mask` (#V entries 0/1, or empty for none) is written as
+  /// the COLOR_0 tint of data_tools/gltf_export.h. Throws amt::Error for bad faces, a mask of the wrong
+  /// size, fps <= 0, or an unwritable path.
   GlbStreamWriter(const std::string& path, const MatrixX3i& F, int num_vertices, float fps,
-                  const std::string& name = "amt_mesh", const std::string& clip = "amt_animation");
+                  const std::string& name = "amt_mesh", const std::string& clip = "amt_animation",
+                  const std::vector<uint8_t>& apparel_mask = {});
   ~GlbStreamWriter();
   GlbStreamWriter(const GlbStreamWriter&) = delete;
   GlbStreamWriter& operator=(const GlbStreamWriter&) = delete;
@@ -59,6 +62,8 @@ class GlbStreamWriter {
   std::vector<unsigned char> index_bytes_;
   int index_component_ = 0;  // 5123 (UNSIGNED_SHORT) or 5125 (UNSIGNED_INT)
   size_t index_count_ = 0;
+  std::vector<uint8_t> colors_;  // COLOR_0 bytes, 4 N, or empty
+  int apparel_vertices_ = 0;
   std::vector<float> delta_;   // scratch for one frame's deltas
   std::vector<float> bounds_;  // 6 per target: min xyz, max xyz
   std::FILE* data_ = nullptr;

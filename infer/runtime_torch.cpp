@@ -13,7 +13,10 @@
 #include <sstream>
 
 #include "data_tools/error.h"
+#include "data_tools/lbs.h"
+#include "data_tools/motion.h"
 #include "data_tools/render.h"
+#include "data_tools/viewer_folder.h"
 
 namespace amt {
 
@@ -135,6 +138,20 @@ MatrixXfR output_weights(const BoundCharacter& bound) {
   return W;
 }
 
+MatrixXfR anchor_skinning_weights(const BoundCharacter& bound) {
+  c10::InferenceMode inference;
+  const int64_t N = bound.num_vertices(), J = bound.joints.size(0);
+  MatrixXfR W = MatrixXfR::Zero(N, J);
+  const auto copy_rows = [&](const at::Tensor& ids, const at::Tensor& weights) {
+    const at::Tensor i = ids.contiguous(), w = weights.to(at::kFloat).contiguous();
+    for (int64_t k = 0; k < i.numel(); ++k)
+      std::memcpy(W.row(i.data_ptr<int64_t>()[k]).data(), w.data_ptr<float>() + k * J, size_t(J) * sizeof(float));
+  };
+  copy_rows(bound.body_ids, bound.body_weights);
+  if (bound.num_apparel() > 0) copy_rows(bound.apparel_ids, bound.apparel_anchor_weights);
+  return W;
+}
+
 // === The job
 
 std::string default_bind_path(const std::string& out) {
@@ -147,7 +164,14 @@ AnimateSummary animate(const AnimateOptions& o) {
   const auto job_start = Clock::now();
   AnimateSummary s;
   s.output = o.out;
-  output_kind(o.out);  // rejects .gltf / .obj names before any work
+  AMT_CHECK(!o.out.empty() || !o.html_dir.empty(), "--out: expected an output (or --html DIR), found none");
+  if (!o.out.empty()) output_kind(o.out);  // rejects .gltf / .obj names before any work
+  // The viewer folder: refused before any work when it holds files amt did not write.
+  const std::filesystem::path html(o.html_dir);
+  if (!o.html_dir.empty()) {
+    check_viewer_folder(o.html_dir);
+    viewer_page_files(o.viewer_dir);
+  }
 
   // Inputs and model.
   const RuntimeCharacter character = load_character(o.character);
@@ -172,8 +196,12 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.load_seconds = seconds_since(job_start);
 
   // An unwritable output fails before the work.
-  check_output_writable(o.out);
-  s.bind_path = o.bind_path.empty() ? default_bind_path(o.out) : (o.bind_path == "none" ? "" : o.bind_path);
+  if (!o.out.empty()) check_output_writable(o.out);
+  const std::string prediction_glb = (html / "prediction.glb").string(), skinning_glb = (html / "skinning.glb").string();
+  if (!o.html_dir.empty()) check_output_writable(prediction_glb), check_output_writable(skinning_glb);
+  s.bind_path = o.bind_path.empty()  ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
+                : o.bind_path == "none" ? ""
+                                        : o.bind_path;
   const BindResult bind =
       bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path);
   s.bind_seconds = bind.seconds;
@@ -199,7 +227,20 @@ AnimateSummary animate(const AnimateOptions& o) {
   info.motion = source.name;
   info.frames = s.frames;
   info.fps = s.fps;
-  std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+  std::unique_ptr<FrameWriter> writer, html_prediction, html_skinning;
+  if (!o.out.empty()) writer = open_frame_writer(o.out, info);
+  MatrixXfR skinning_weights;
+  if (!o.html_dir.empty()) {
+    ViewerManifest manifest;
+    manifest.title = character.name + " · " + source.name;
+    manifest.groups.push_back({"amt animate: the prediction beside rigid skinning (apparel glued to its anchor)",
+                               {{"prediction.glb", "prediction", "prediction"}, {"skinning.glb", "skinning", "skinning"}}});
+    write_viewer_folder(o.html_dir, o.viewer_dir, manifest);
+    html_prediction = open_frame_writer(prediction_glb, info);
+    html_skinning = open_frame_writer(skinning_glb, info);
+    skinning_weights = anchor_skinning_weights(session.bound());
+  }
+  MatrixX3f skinned;
 
   // Lead-in from the rest pose, then the motion.
   const Transforms first = player.frame(0);
@@ -229,7 +270,12 @@ AnimateSummary animate(const AnimateOptions& o) {
     PenetrationReport report;
     FrameTimes times = session.step(T, V, &report);
     const auto out_start = Clock::now();
-    writer->append(V, T);
+    if (writer) writer->append(V, T);
+    if (html_prediction) {
+      html_prediction->append(V, T);
+      linear_blend_skinning(character.mesh.V, skinning_weights, skinning_matrices(character.skeleton, T), skinned);
+      html_skinning->append(skinned, T);
+    }
     times.output = seconds_since(out_start);
     for (const int k : picture_frames) {
       if (k == t) pictures.push_back(render_character(TriMesh{V, character.mesh.F}, info.apparel_mask, picture_options));
@@ -249,7 +295,12 @@ AnimateSummary animate(const AnimateOptions& o) {
       if (t + 1 == s.frames) std::fprintf(stderr, "\n");
     }
   }
-  const std::string written = writer->finish();
+  const std::string written = writer ? writer->finish() : "";
+  if (html_prediction) {
+    html_prediction->finish();
+    html_skinning->finish();
+    s.html_dir = o.html_dir;
+  }
   if (!pictures.empty()) write_png(image_grid(pictures, int(pictures.size())), o.picture);
   s.output = written;
   const double n = std::max(1, s.frames);
@@ -264,7 +315,10 @@ AnimateSummary animate(const AnimateOptions& o) {
 std::string describe(const AnimateSummary& s) {
   std::ostringstream out;
   char line[256];
-  out << "wrote " << s.output << "\n";
+  if (!s.output.empty()) out << "wrote " << s.output << "\n";
+  if (!s.html_dir.empty())
+    out << "wrote the viewer folder " << s.html_dir << " (prediction.glb beside skinning.glb): open it with amt view "
+        << s.html_dir << "\n";
   std::snprintf(line, sizeof(line),
                 "frames: %d at %.4g fps (%.2f s of motion, after %d lead-in frames from the rest pose)%s\n", s.frames,
                 s.fps, s.frames / s.fps, s.lead_in, s.exact_motion ? ", dataset transforms as stored" : "");

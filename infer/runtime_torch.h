@@ -66,6 +66,11 @@ class RuntimeSession {
   void check_output(const float* P, int64_t n, const Transforms& joint_transforms, const char* stage) const;
 };
 
+/// Rigid skinning of every vertex (#V by J, rows sum to 1), the "skinning" the viewer shows beside a
+/// prediction: the bound body weights on body rows and, on apparel rows, the weights of the apparel
+/// module's anchor (apparel_anchor_weights: the apparel glued to the body vertex it follows).
+MatrixXfR anchor_skinning_weights(const BoundCharacter& bound);
+
 /// (J, 3, 4) float tensor of J transforms.
 at::Tensor transforms_tensor(const Transforms& transforms);
 
@@ -77,8 +82,12 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 
 /// Everything `amt animate` takes.
 ///   model_dir   folder of the four checkpoints (train/pipeline.h load_model_bundle)
-///   out         .glb, .h5 or an OBJ folder (infer/frame_writer.h)
-///   bind_path   bind cache file; empty: "<out without extension>.bind" beside the output; "none" disables
+///   out         .glb, .h5 or an OBJ folder (infer/frame_writer.h); may be empty when html_dir is set
+///   bind_path   bind cache file; empty: "<out without extension>.bind" beside the output (beside
+///               html_dir/prediction.glb without out); "none" disables
+///   html_dir    when not empty, also a viewer folder (data_tools/viewer_folder.h): prediction.glb and
+///               skinning.glb (anchor_skinning_weights) side by side, opened with `amt view html_dir`;
+///               viewer_dir is the repository's viewer/ its page is copied from
 ///   apparel_mask  a mask file overriding the segmenter (read_apparel_mask), or empty
 struct AnimateOptions {
   CharacterSpec character;
@@ -87,6 +96,7 @@ struct AnimateOptions {
   std::string out;
   std::string bind_path;
   std::string apparel_mask;
+  std::string html_dir, viewer_dir;
   PlaybackOptions playback;
   bool resolve_penetration = true;
   PenetrationOptions penetration;
@@ -99,7 +109,8 @@ struct AnimateOptions {
 
 /// What a run did: counts, timings (seconds) and penetration over the written frames.
 struct AnimateSummary {
-  std::string output;
+  /// What was written: the output's description, and the viewer folder (or "").
+  std::string output, html_dir;
   int frames = 0, lead_in = 0;
   float fps = 30.0f;
   int vertices = 0, apparel_vertices = 0;

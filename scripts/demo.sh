@@ -2,8 +2,9 @@
 # The main job on bundled defaults: installs the dependencies, builds `amt`, and animates a stylized
 # character (generated on the fly by the dataset builder: a procedural body dressed with apparel,
 # seed 7, about 8000 vertices) with a CMU clip from data/mocap/cmu, using the shipped model in
-# models/pretrained/. Writes out/demo.glb (opens in three.js, Blender or any glTF viewer) and prints
-# the summary: frames, time per frame, penetration share before and after resolution.
+# models/pretrained/. Writes out/demo.glb (opens in three.js, Blender or any glTF viewer), out/demo.png
+# and out/demo_viewer/ (the web viewer: `build/app/amt view out/demo_viewer`), and prints the summary:
+# frames, time per frame, penetration share before and after resolution.
 #
 # Environment: AMT_BUILD_DIR (default build), AMT_JOBS (build jobs, default: all cores),
 # AMT_MODEL (default models/pretrained), AMT_DEMO_CLIP (default 02_01.bvh, a walk), AMT_THREADS (2).
@@ -34,6 +35,6 @@ fi
 mkdir -p out
 echo "demo: animating a generated stylized character (seed 7) with $(basename "$clip") using $model"
 "$amt" animate --character generated:7 --motion "$clip" --model "$model" --out out/demo.glb --threads "$threads" \
-  --picture out/demo.png
+  --picture out/demo.png --html out/demo_viewer
 echo "demo: wrote $(pwd)/out/demo.glb and a picture of four frames, out/demo.png (the bind is cached in"
-echo "demo: out/demo.bind: a second run skips it)"
+echo "demo: out/demo.bind: a second run skips it); watch it beside rigid skinning with: $amt view out/demo_viewer"

@@ -15,6 +15,8 @@ packages=(
   gnuplot-nox           # report plots (PNG)
   libstb-dev            # stb_image_write: PNG pictures of characters (data_tools/render.h)
   libcgal-dev           # exact triangle-triangle intersection tests of the garment refit (tests/refit)
+  libcpp-httplib-dev    # the local HTTP server of `amt view`
+  chromium              # the headless browser of the viewer's test (tests/viewer/)
 )
 
 # Node runs the Khronos glTF validator (npm package gltf-validator) in tests. The machine image may
@@ -46,5 +48,12 @@ validator_dir="$(dirname "$0")/../tools/gltf-validator"
 if [ ! -d "$validator_dir/node_modules/gltf-validator" ]; then
   echo "setup: installing the glTF validator (npm ci in tools/gltf-validator)"
   (cd "$validator_dir" && npm ci --no-audit --no-fund --loglevel=error)
+fi
+# The web viewer's three.js (and playwright-core, which drives Chromium in its test), pinned by
+# viewer/package-lock.json.
+viewer_dir="$(dirname "$0")/../viewer"
+if [ ! -d "$viewer_dir/node_modules/three" ] || [ ! -d "$viewer_dir/node_modules/playwright-core" ]; then
+  echo "setup: installing the viewer's three.js and playwright-core (npm ci in viewer)"
+  (cd "$viewer_dir" && npm ci --no-audit --no-fund --loglevel=error)
 fi
 echo "setup: done"

@@ -249,6 +249,10 @@ struct Accumulators {
   std::map<std::pair<std::string, std::string>, Curve> horizons;  // (subset, method): paper-window frames
   // (method, protocol, subset) -> sums over frames of mean |V - S| and mean |V_gt - S| over apparel.
   std::map<Key, std::pair<double, double>> amplitude;
+  // The clip being scored (name, shard) and every scored clip's PMD_a (EvaluationResult::clip_scores).
+  std::string clip;
+  int shard = 0;
+  std::vector<ClipScore> clip_scores;
 };
 
 // Mean over the apparel vertices (mask 1) of |a_i - b_i| (metres); 0 without apparel.
@@ -268,7 +272,7 @@ class ClipScorer {
  public:
   ClipScorer(Accumulators& acc, const CharacterCache& c, const std::string& method, const std::string& protocol,
              bool per_character)
-      : c_(c) {
+      : acc_(acc), c_(c), method_(method), protocol_(protocol) {
     row_ = &acc.rows[{method, protocol, c.subset}];
     row_->begin_clip();
     amplitude_ = &acc.amplitude[{method, protocol, c.subset}];
@@ -280,6 +284,8 @@ class ClipScorer {
   ~ClipScorer() {
     row_->end_clip();
     if (character_) character_->end_clip();
+    acc_.clip_scores.push_back({c_.subset, acc_.clip, c_.name, method_, protocol_, acc_.shard,
+                                frames_ > 0 ? pmd_a_sum_ / frames_ : std::nan("")});
   }
   ClipScorer(const ClipScorer&) = delete;
   ClipScorer& operator=(const ClipScorer&) = delete;
@@ -293,11 +299,17 @@ class ClipScorer {
     const Penetration* pen = frame.penetration ? &*frame.penetration : nullptr;
     row_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
     if (character_) character_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
-    return point_mesh_distance_cm(frame.V, gt, &c_.mask, 1);
+    const double pmd_a = point_mesh_distance_cm(frame.V, gt, &c_.mask, 1);
+    if (std::isfinite(pmd_a)) pmd_a_sum_ += pmd_a, ++frames_;
+    return pmd_a;
   }
 
  private:
+  Accumulators& acc_;
   const CharacterCache& c_;
+  std::string method_, protocol_;
+  double pmd_a_sum_ = 0;
+  int frames_ = 0;
   ScoreAccumulator* row_ = nullptr;
   ScoreAccumulator* character_ = nullptr;
   std::pair<double, double>* amplitude_ = nullptr;
@@ -344,6 +356,7 @@ std::vector<MethodScores> collect_rows(const Accumulators& acc) {
 
 void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::unique_ptr<CharacterCache>>& cache) {
   result.rows = collect_rows(acc);
+  result.clip_scores = acc.clip_scores;
   std::map<std::string, std::pair<SegmentationScores, int>> seg;
   for (const auto& c : cache) {
     CharacterScores cs;
@@ -559,6 +572,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     const EvalClip& clip = clips[k];
     const DatasetReader& reader = *readers[clip.shard];
     CharacterCache& c = characters.of(reader, clip, options.penetration);
+    acc.clip = clip.info.name;
+    acc.shard = clip.shard;
     ++result.clips[clip.subset];
     const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c.mask.size());
     const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
@@ -703,6 +718,8 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     AMT_CHECK(summary.num_vertices == N, predictions, ": /characters/", p.character, ": vertices: expected ", N,
               " (the ground truth's ", clip.info.character, "), found ", summary.num_vertices);
     ++result.clips[clip.subset];
+    acc.clip = clip.info.name;
+    acc.shard = clip.shard;
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
     const int64_t J = static_cast<int64_t>(reader.joint_names().size());
@@ -802,6 +819,63 @@ std::string evaluation_json(const EvaluationResult& result) {
   if (result.inertia_clips > 0) j["inertia"] = {{"value", result.inertia}, {"clips", result.inertia_clips}};
   j["notes"] = result.notes;
   return j.dump(2) + "\n";
+}
+
+
+// === Clips to look at
+
+std::vector<ViewerPick> viewer_picks(const EvaluationResult& result) {
+  const bool rollout = std::any_of(result.clip_scores.begin(), result.clip_scores.end(), [](const ClipScore& s) {
+    return s.method == "full" && s.protocol == kRollout;
+  });
+  const std::string protocol = rollout ? kRollout : kPaper;
+  std::map<std::string, std::vector<ClipScore>> by_subset;
+  for (const ClipScore& s : result.clip_scores)
+    if (s.method == "full" && s.protocol == protocol && std::isfinite(s.pmd_a)) by_subset[s.subset].push_back(s);
+  std::vector<ViewerPick> picks;
+  for (auto& [subset, scores] : by_subset) {
+    std::stable_sort(scores.begin(), scores.end(),
+                     [](const ClipScore& a, const ClipScore& b) { return a.pmd_a > b.pmd_a; });
+    const size_t n = scores.size();
+    const std::pair<size_t, const char*> chosen[] = {{0, "worst"}, {n / 2, "median"}, {n - 1, "best"}};
+    std::vector<size_t> taken;
+    for (const auto& [k, name] : chosen) {
+      if (std::find(taken.begin(), taken.end(), k) != taken.end()) continue;
+      taken.push_back(k);
+      picks.push_back({scores[k], name});
+    }
+  }
+  return picks;
+}
+
+ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, const ViewerPick& pick,
+                     int max_frames) {
+  const ClipScore& s = pick.score;
+  AMT_CHECK(s.shard >= 0 && size_t(s.shard) < result.shards.size(), "eval: viewer: shard ", s.shard,
+            ": expected one of the ", result.shards.size(), " evaluated shards");
+  const DatasetReader reader(result.shards[size_t(s.shard)]);
+  const ClipInfo info = reader.clip_info(s.clip);
+  const std::unique_ptr<CharacterCache> c = load_character(reader, info.character, s.subset, false);
+  const CharacterData data = reader.read_character(info.character);
+  const int64_t T = max_frames > 0 ? std::min<int64_t>(max_frames, info.num_frames) : info.num_frames;
+  const int64_t N = static_cast<int64_t>(c->mask.size()), J = bundle.num_joints();
+  ViewedClip v;
+  v.F = data.mesh.F;
+  v.mask = c->mask;
+  v.fps = info.fps;
+  const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(s.clip, 0, int(T)), T, J);
+  const MatrixX3f gt_all = reader.read_vertices(s.clip, 0, static_cast<int>(T));
+  for (int64_t t = 0; t < T; ++t) v.ground_truth.push_back(frame_of(gt_all, t, N));
+  c10::InferenceMode inference;
+  const at::Tensor skinned = linear_blend_skinning(c->V, c->gt_weights, motion, c->joints).contiguous();
+  for (int64_t t = 0; t < T; ++t) v.skinning.push_back(to_matrix(skinned[t]));
+  // The full model's rollout, as evaluate_model runs it.
+  const BoundCharacter b = bind_character(bundle, c->V, c->F, c->joints, bind_options_for("predicted", *c));
+  PipelineStepper stepper(bundle, b, rest_apparel_history(b), PipelineStages::kFull, ApparelSource::kNetwork, 0.0);
+  const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);
+  for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
+  for (int64_t t = 0; t < T; ++t) v.prediction.push_back(to_matrix(stepper.step(motion[t])));
+  return v;
 }
 
 }  // namespace amt

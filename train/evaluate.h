@@ -92,6 +92,14 @@ struct RolloutCurve {
   std::vector<int> clips;
 };
 
+/// One scored clip: its PMD_a (cm) under one method and protocol, the mean over its scored frames.
+///   shard  index into EvaluationResult::shards
+struct ClipScore {
+  std::string subset, clip, character, method, protocol;
+  int shard = 0;
+  double pmd_a = std::nan("");
+};
+
 /// Everything an evaluation measured.
 struct EvaluationResult {
   /// Dataset shards, model folder (or the predictions file) evaluated.
@@ -111,6 +119,8 @@ struct EvaluationResult {
   int inertia_clips = 0;
   /// subset -> number of clips evaluated.
   std::map<std::string, int> clips;
+  /// Every clip's PMD_a per method and protocol, in evaluation order (the viewer's picks).
+  std::vector<ClipScore> clip_scores;
   /// Things the report must say (missing ablation checkpoints, clips too short for a window, ...).
   std::vector<std::string> notes;
   /// The options used.
@@ -144,5 +154,33 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
 
 /// The result as JSON text (NaN as null): rows, segmentation, characters, curves, notes.
 std::string evaluation_json(const EvaluationResult& result);
+
+// === Clips to look at (`amt eval --viewer`)
+
+/// A clip picked from an evaluation: the "worst", "median" or "best" of its subset by the full model's
+/// PMD_a in `protocol` (rollout when it ran, else paper).
+struct ViewerPick {
+  ClipScore score;
+  std::string pick;
+};
+
+/// The worst, median and best clip of each subset by the full model's PMD_a (fewer when a subset has
+/// fewer clips; each clip once). Empty when the full model was not evaluated.
+std::vector<ViewerPick> viewer_picks(const EvaluationResult& result);
+
+/// The three sequences of a picked clip, each T frames of #V by 3 positions (metres) over faces F:
+/// the full model rolled out from the rest pose over the whole clip (as the "rollout" protocol and
+/// `amt animate` run it, without penetration resolution), the ground truth, and the skinning baseline
+/// (every vertex skinned by the ground-truth body weights). `mask` is the ground-truth apparel mask.
+struct ViewedClip {
+  MatrixX3i F;
+  std::vector<uint8_t> mask;
+  float fps = 30.0f;
+  std::vector<MatrixX3f> prediction, ground_truth, skinning;
+};
+
+/// Runs `bundle` on the picked clip of `result.shards` (its first `max_frames` frames; 0: all).
+ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, const ViewerPick& pick,
+                     int max_frames);
 
 }  // namespace amt

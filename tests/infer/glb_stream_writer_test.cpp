@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -54,6 +57,72 @@ TEST(GlbStreamWriter, FramesReadBackAndMatchTheInMemoryExport) {
   const GltfVertexAnimation ref = gltf_vertex_animation(read_gltf(reference), "", 24.0f);
   for (int k = 0; k < T; ++k) EXPECT_EQ(ref.frames[size_t(k)], back.frames[size_t(k)]) << k;
   test::expect_valid_gltf(path);
+}
+
+// The JSON chunk of a GLB file and the bytes of accessor `a` (tightly packed, no sparse).
+struct GlbParts {
+  nlohmann::json json;
+  std::string bin;
+};
+GlbParts glb_parts(const std::string& path) {
+  const std::string bytes = test::read_file_bytes(path);
+  uint32_t json_length = 0, bin_length = 0;
+  std::memcpy(&json_length, bytes.data() + 12, 4);
+  std::memcpy(&bin_length, bytes.data() + 20 + json_length, 4);
+  return {nlohmann::json::parse(bytes.substr(20, json_length)), bytes.substr(28 + json_length, bin_length)};
+}
+std::string accessor_bytes(const GlbParts& glb, int a, size_t element_size) {
+  const nlohmann::json& accessor = glb.json["accessors"][a];
+  const nlohmann::json& view = glb.json["bufferViews"][accessor["bufferView"].get<int>()];
+  return glb.bin.substr(view["byteOffset"].get<size_t>(), accessor["count"].get<size_t>() * element_size);
+}
+
+TEST(GlbStreamWriter, TheApparelMaskTravelsAsVertexColours) {
+  const auto dir = test::temp_dir("glb_stream_colours");
+  const TriMesh mesh = uv_sphere(Eigen::Vector3f::Zero(), 0.5f, 8, 6);
+  std::vector<uint8_t> mask(size_t(mesh.num_vertices()), 0);
+  for (size_t i = 0; i < mask.size(); i += 3) mask[i] = 1;
+  const int apparel = int(std::count(mask.begin(), mask.end(), 1));
+  std::vector<MatrixX3f> frames = {wave(mesh, 0), wave(mesh, 1), wave(mesh, 2)};
+  const std::string streamed = (dir / "streamed.glb").string(), in_memory = (dir / "in_memory.glb").string();
+  {
+    GlbStreamWriter writer(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask);
+    for (const MatrixX3f& V : frames) writer.append(V);
+    writer.finish();
+  }
+  GltfExportOptions options;
+  options.apparel_mask = mask;
+  export_gltf_mesh_sequence(in_memory, mesh.F, frames, 30.0f, options);
+  for (const std::string& path : {streamed, in_memory}) {
+    const GlbParts glb = glb_parts(path);
+    const nlohmann::json& primitive = glb.json["meshes"][0]["primitives"][0];
+    ASSERT_TRUE(primitive["attributes"].contains("COLOR_0")) << path;
+    const int a = primitive["attributes"]["COLOR_0"];
+    EXPECT_EQ(glb.json["accessors"][a]["componentType"], 5121) << path;
+    EXPECT_EQ(glb.json["accessors"][a]["normalized"], true) << path;
+    EXPECT_EQ(glb.json["accessors"][a]["type"], "VEC4") << path;
+    const std::string colors = accessor_bytes(glb, a, 4);
+    ASSERT_EQ(colors.size(), mask.size() * 4) << path;
+    for (size_t i = 0; i < mask.size(); ++i) {
+      const auto* rgba = reinterpret_cast<const uint8_t*>(colors.data() + 4 * i);
+      EXPECT_EQ(std::memcmp(rgba, mask[i] ? kApparelColor : kBodyColor, 4), 0) << path << " vertex " << i;
+    }
+    EXPECT_EQ(glb.json["asset"]["extras"]["apparel_vertices"], apparel) << path;
+    EXPECT_EQ(glb.json["asset"]["extras"]["apparel_color"][2], int(kApparelColor[2])) << path;
+    // The frames still read back.
+    const GltfVertexAnimation back = gltf_vertex_animation(read_gltf(path), "", 30.0f);
+    ASSERT_EQ(back.frames.size(), frames.size()) << path;
+    EXPECT_LT((back.frames[2] - frames[2]).cwiseAbs().maxCoeff(), 1e-5f) << path;
+    test::expect_valid_gltf(path);
+  }
+  mask[0] = 2;
+  EXPECT_NE(test::error_of([&] { GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask); })
+                .find("apparel mask: expected 0 or 1, found 2 at vertex 0"),
+            std::string::npos);
+  mask.pop_back();
+  EXPECT_NE(test::error_of([&] { GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask); })
+                .find("apparel mask: expected"),
+            std::string::npos);
 }
 
 TEST(GlbStreamWriter, SingleFrameIsAStaticMesh) {

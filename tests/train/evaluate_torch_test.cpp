@@ -15,11 +15,13 @@
 
 #include "data_tools/dataset_file.h"
 #include "data_tools/example_dataset.h"
+#include "data_tools/gltf_import.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
 #include "data_tools/skeleton.h"
 #include "fresh_model.h"
 #include "micro_dataset.h"
+#include "train/evaluation_viewer.h"
 #include "train/module_options.h"
 #include "train/report.h"
 
@@ -107,6 +109,62 @@ TEST(Evaluate, SkinningBaselineIsZeroWhenTheGroundTruthIsLbs) {
   EXPECT_EQ(result.characters.size(), 2u);
   ASSERT_FALSE(result.curves.empty());
   EXPECT_EQ(result.curves.front().pmd_a.size(), 17u);
+}
+
+// amt eval --viewer: the worst, median and best clip of each subset by the full model's rollout PMD_a,
+// each as prediction, ground truth and skinning GLBs in a viewer folder. On LBS ground truth the
+// skinning baseline's GLB is the ground truth's.
+TEST(EvaluationViewer, PicksWorstMedianAndBestAndWritesTheirThreeSequences) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_viewer");
+  write_lbs_dataset(dir + "/lbs.h5", 9, /*test_characters=*/3, /*test_clips=*/1);
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_viewer_bundle"));
+  EvaluateOptions options;
+  options.methods = {"full"};
+  options.paper = false;
+  options.penetration = false;
+  options.progress = false;
+  const EvaluationResult result = evaluate_model(bundle, {dir + "/lbs.h5"}, options);
+  const std::vector<ViewerPick> picks = viewer_picks(result);
+  // 3 held-out characters' clips (worst, median, best), 1 held-out clip (worst only: it is all three).
+  ASSERT_EQ(picks.size(), 4u);
+  EXPECT_EQ(picks[0].score.subset, kHeldOutCharacters);
+  EXPECT_EQ(picks[0].pick, "worst");
+  EXPECT_EQ(picks[1].pick, "median");
+  EXPECT_EQ(picks[2].pick, "best");
+  EXPECT_GE(picks[0].score.pmd_a, picks[1].score.pmd_a);
+  EXPECT_GE(picks[1].score.pmd_a, picks[2].score.pmd_a);
+  EXPECT_EQ(picks[3].score.subset, kHeldOutClips);
+  for (const ViewerPick& p : picks) EXPECT_EQ(p.score.protocol, "rollout");
+  // The clip's mean PMD_a is the subset row's when the subset has one clip.
+  EXPECT_NEAR(picks[3].score.pmd_a, result.find("full", "rollout", kHeldOutClips)->scores.pmd_a, 1e-4);
+
+  const std::string viewer_dir = (std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path() / "viewer").string();
+  const std::string out = dir + "/viewer";
+  const EvaluationViewer written = write_evaluation_viewer(bundle, result, out, viewer_dir, 6);
+  EXPECT_EQ(written.clips, 4);
+  std::ifstream manifest(out + "/viewer.json");
+  std::stringstream text;
+  text << manifest.rdbuf();
+  EXPECT_NE(text.str().find("held-out characters, worst clip"), std::string::npos) << text.str();
+  const std::string stem = out + "/held_out_characters_worst_";
+  const GltfVertexAnimation gt = gltf_vertex_animation(read_gltf(stem + "ground_truth.glb"), "", 30.0f);
+  const GltfVertexAnimation skinning = gltf_vertex_animation(read_gltf(stem + "skinning.glb"), "", 30.0f);
+  const GltfVertexAnimation prediction = gltf_vertex_animation(read_gltf(stem + "prediction.glb"), "", 30.0f);
+  ASSERT_EQ(gt.frames.size(), 6u);
+  ASSERT_EQ(prediction.frames.size(), 6u);
+  ASSERT_EQ(skinning.frames.size(), 6u);
+  for (size_t t = 0; t < 6; ++t) EXPECT_LT((gt.frames[t] - skinning.frames[t]).cwiseAbs().maxCoeff(), 1e-4f) << t;
+  // The ground truth is the dataset's clip.
+  const DatasetReader reader(dir + "/lbs.h5");
+  const MatrixX3f first = reader.read_vertices(picks[0].score.clip, 0, 1);
+  EXPECT_LT((gt.frames[0] - first).cwiseAbs().maxCoeff(), 1e-5f);
+  // A folder of the user's is refused.
+  std::filesystem::create_directories(dir + "/mine");
+  std::ofstream(dir + "/mine/notes.txt") << "x";
+  EXPECT_NE(test::error_of([&] { write_evaluation_viewer(bundle, result, dir + "/mine", viewer_dir, 6); })
+                .find("expected an empty folder or a viewer folder amt wrote"),
+            std::string::npos);
 }
 
 TEST(Evaluate, CappedEvaluationTakesClipsRoundRobinOverCharacters) {
