@@ -1,5 +1,5 @@
 #pragma once
-// Penetration resolution, the runtime's post-process (issue 6, item 5): apparel vertices found inside
+// Penetration resolution, the runtime's post-process (issue 6, item 5) and cloth retargeting's (issue 13): apparel vertices found inside
 // the body are pushed out along the body surface normal by their depth plus a small margin, as in
 // the cloth-retargeting paper (papers/cloth_motion_retargeting.md, section 3.2: "moving the
 // penetrating cloth vertices in the direction of the normal vectors ... by the extent of the
