@@ -20,6 +20,9 @@ void add_bench_command(CLI::App& app);
 /// `amt animate`: a character and a motion -> an animated GLB, OBJ folder or dataset file (infer/).
 void add_animate_command(CLI::App& app);
 
+/// `amt retarget-cloth`: apparel motion from a source body onto a target body (infer/retarget_cloth.h).
+void add_retarget_cloth_command(CLI::App& app);
+
 /// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
 void add_threads_option(CLI::App& command);
 
