@@ -106,7 +106,9 @@ TEST(ClothRetarget, AVertexInsideTheBodyComesOutAtItsDepthAlongTheNormal) {
   EXPECT_NEAR(body.distance(p), 0.001f, 1e-5f);                // onto the surface, plus the margin
   EXPECT_FALSE(body.inside(p));
   for (const int32_t i : r.target_apparel()) {  // the others stay
-    if (i != v) EXPECT_LT((out.row(i) - s.row(i)).norm(), 1e-5f);
+    if (i != v) {
+      EXPECT_LT((out.row(i) - s.row(i)).norm(), 1e-5f);
+    }
   }
 }
 
