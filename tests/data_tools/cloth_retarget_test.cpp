@@ -20,7 +20,7 @@ constexpr float kRadius = 0.3f;
 
 // A sphere of radius 0.3 at `centre`, then a 6 x 6 sheet bent onto the sphere of radius `shell` around
 // the same centre, on the +z side (apparel).
-ClothCharacter sphere_with_sheet(const std::string& name, const Vector3f& centre = Vector3f::Zero(),
+ClothCharacter sphere_with_sheet(const std::string& name, const Vector3f& centre = Vector3f(0, 0, 0),
                                  float shell = 0.33f) {
   ClothCharacter c;
   c.name = name;
@@ -43,7 +43,8 @@ MatrixX3f apparel_rows(const MatrixX3f& V, const std::vector<int32_t>& ids) {
 }
 
 TEST(ClothRetarget, DetailVectorsOfAnUnmovedSourceAreZero) {
-  const ClothCharacter source = sphere_with_sheet("a.h5:source"), target = sphere_with_sheet("b.h5:target", {}, 0.34f);
+  const ClothCharacter source = sphere_with_sheet("a.h5:source");
+  const ClothCharacter target = sphere_with_sheet("b.h5:target", Vector3f::Zero(), 0.34f);
   ClothRetargeter r(source, target);
   ASSERT_EQ(r.num_apparel(), 36);
   EXPECT_LT(r.detail_vectors(source.mesh.V).cwiseAbs().maxCoeff(), 1e-5f);
