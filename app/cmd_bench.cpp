@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <memory>
 #include <random>
 #include <unistd.h>
 #include <cmath>
@@ -24,6 +25,7 @@
 #include "app/repository.h"
 #include "data_tools/apparel.h"
 #include "data_tools/body_generator.h"
+#include "data_tools/cloth_retarget.h"
 #include "data_tools/error.h"
 #include "data_tools/lbs_torch.h"
 #include "data_tools/retarget.h"
@@ -226,6 +228,62 @@ void bench_runtime(const BenchOptions& o) {
   std::filesystem::remove_all(scratch, ignored);
 }
 
+
+// Cloth retargeting (issue 13): two generated bodies dressed with one garment template (about 6k apparel
+// vertices), both walking; registration of both sides, then the retargeting of a frame: steps 3-6, 3.1 and
+// the edge relaxation alone, and with the push-out of 3.2 (inside tests and resolution), on one thread. The source apparel is the skinned apparel plus a
+// swinging offset (a stand-in for a simulation: the cost does not depend on where the apparel is).
+void bench_cloth(const BenchOptions& o) {
+  set_thread_count(1);
+  ApparelOptions dress;
+  dress.vertex_fraction = 0.35f;
+  dress.min_pieces = 2;
+  dress.max_pieces = 3;
+  const GeneratedBody body_a = generate_body(sample_body_params(uint64_t(7)), 12000);
+  const DressedCharacter a = dress_character(body_a, 7, dress);
+  dress.topology = a.topology;
+  const GeneratedBody body_b = generate_body(sample_body_params(uint64_t(8)), 12000);
+  const DressedCharacter b = dress_character(body_b, 7, dress);
+  const ClothCharacter source{"bench:a", a.mesh, a.apparel_mask}, target{"bench:b", b.mesh, b.apparel_mask};
+  const int repeats = std::max(3, o.repeats / 6);
+  std::unique_ptr<ClothRetargeter> resolving;
+  const double registration = median_seconds(repeats, [&] { resolving = std::make_unique<ClothRetargeter>(source, target); });
+  ClothRetargetOptions core;  // steps 3-6, 3.1 and the relaxation: no winding-number queries
+  core.resolve = false;
+  core.measure = false;
+  ClothRetargeter plain(source, target, core);
+  const Motion walk_a = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body_a.skeleton);
+  const Motion walk_b = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body_b.skeleton);
+  std::vector<MatrixX3f> source_frames, target_frames;
+  for (int t = 0; t < walk_a.num_frames(); ++t) {
+    MatrixX3f Va, Vb;
+    linear_blend_skinning(a.mesh.V, a.body_weights, skinning_matrices(body_a.skeleton, forward_kinematics(body_a.skeleton, walk_a, t)), Va);
+    linear_blend_skinning(b.mesh.V, b.body_weights, skinning_matrices(body_b.skeleton, forward_kinematics(body_b.skeleton, walk_b, t)), Vb);
+    for (const int32_t i : resolving->source_apparel()) Va(i, 0) += 0.02f * std::sin(0.3f * float(t) + 0.01f * float(i));
+    source_frames.push_back(std::move(Va));
+    target_frames.push_back(std::move(Vb));
+  }
+  const int frames = int(source_frames.size());
+  Penetration before, after;
+  for (const bool resolve : {false, true}) {
+    ClothRetargeter& r = resolve ? *resolving : plain;
+    int t = 0;
+    MatrixX3f V;
+    const double seconds = median_seconds(o.repeats, [&] {
+      V = target_frames[size_t(t)];
+      const ClothRetargetReport report = r.retarget(source_frames[size_t(t)], V);
+      if (resolve) before.inside += report.before.inside, before.total += report.before.total;
+      if (resolve) after.inside += report.after.inside, after.total += report.after.total;
+      t = (t + 1) % frames;
+    });
+    std::printf("cloth     %6d apparel vertices on %d + %d body vertices, 1 thread: retargeting %s median %.3f ms per frame\n",
+                r.num_apparel(), body_a.mesh.num_vertices(), body_b.mesh.num_vertices(),
+                resolve ? "with push-out (3.2)" : "steps 3-6, 3.1, relaxation", 1e3 * seconds);
+  }
+  std::printf("cloth     registration of both sides: median %.1f ms; penetration %.2f %% before, %.2f %% after push-out\n",
+              1e3 * registration, 100.0 * before.share(), 100.0 * after.share());
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -235,8 +293,8 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(100, 5000000))
       ->capture_default_str();
   bench->add_option("--repeats", options->repeats, "Timed repeats per figure")->check(CLI::Range(1, 100000))->capture_default_str();
-  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime")
-      ->check(CLI::IsMember({"lbs", "geodesic", "runtime"}))
+  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting)")
+      ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth"}))
       ->capture_default_str();
   bench->add_option("--runtime-sizes", options->runtime_sizes, "Vertex counts of the runtime suite's characters")
       ->check(CLI::Range(2000, 200000))
@@ -254,6 +312,7 @@ void add_bench_command(CLI::App& app) {
       if (suite == "lbs") bench_lbs(*options);
       if (suite == "geodesic") bench_geodesic(*options);
       if (suite == "runtime") bench_runtime(*options);
+      if (suite == "cloth") bench_cloth(*options);
     }
     std::printf("peak resident memory: %.0f MB\n", peak_resident_mb());
   });

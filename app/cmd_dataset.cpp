@@ -12,6 +12,7 @@
 #include "data_tools/dataset_quality.h"
 #include "data_tools/error.h"
 #include "data_tools/example_dataset.h"
+#include "data_tools/garment_pairs.h"
 
 namespace amt::app {
 namespace {
@@ -127,6 +128,33 @@ void add_build_command(CLI::App& dataset) {
   });
 }
 
+// `amt dataset pairs --out FILE`: bodies dressed in pairs with one garment template, simulated under the same
+// clips (data_tools/garment_pairs.h): the test bed of `amt retarget-cloth` and of `amt eval`'s cloth_retarget.
+void add_pairs_command(CLI::App& dataset) {
+  auto* pairs = dataset.add_subcommand(
+      "pairs", "Build a garment pair set: pairs of bodies dressed with one garment template (identical apparel "
+               "connectivity), each simulated under the same clips, in one HDF5 file");
+  auto options = std::make_shared<GarmentPairOptions>();
+  DatasetBuildOptions& b = options->build;
+  b.procedural = 2;
+  b.frames = 90;
+  pairs->add_option("--out", b.out, "Output dataset file (.h5; written to a temporary name, then renamed)")->required();
+  pairs->add_option("--pairs", options->pairs, "Number of body pairs")->capture_default_str();
+  pairs->add_option("--seed", b.seed, "Seed of bodies, garments and procedural motions")->capture_default_str();
+  pairs->add_option("--motions", b.motions, "Folder of BVH files (every *.bvh) simulated besides the procedural clips");
+  pairs->add_option("--procedural", b.procedural, "Number of procedural motion clips")->capture_default_str();
+  pairs->add_option("--frames", b.frames, "Frames per clip (30 fps)")->capture_default_str();
+  pairs->add_option("--vertices", b.vertices, "Target vertex count of each body before dressing")
+      ->capture_default_str();
+  add_threads_option(*pairs);
+  pairs->callback([options] {
+    options->build.progress = &std::cerr;
+    const GarmentPairReport report = build_garment_pairs(*options);
+    std::cout << "wrote " << options->build.out << ": " << report.characters << " characters, " << report.clips
+              << " clips, " << report.frames << " frames in " << report.seconds << " s\n";
+  });
+}
+
 // `amt dataset check DIR`: the quality gates of a built dataset (data_tools/dataset_quality.h).
 void add_check_command(CLI::App& dataset) {
   auto* check = dataset.add_subcommand(
@@ -167,6 +195,7 @@ void add_dataset_command(CLI::App& app) {
   add_example_command(*dataset);
   add_preview_command(*dataset);
   add_build_command(*dataset);
+  add_pairs_command(*dataset);
   add_check_command(*dataset);
 }
 

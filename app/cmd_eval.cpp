@@ -36,7 +36,9 @@ struct EvalCommand {
 
 void print_summary(const EvaluationResult& result, const ReportFiles& files) {
   for (const MethodScores& r : result.rows) {
-    if (r.method != "full" && r.method != "skinning_baseline" && r.method != "predictions") continue;
+    if (r.method != "full" && r.method != "skinning_baseline" && r.method != "predictions" &&
+        r.method != "cloth_retarget" && r.method != "cloth_retarget_unresolved")
+      continue;
     std::cout << r.subset << ", " << r.protocol << ", " << method_label(r.method) << ": PMD " << r.scores.pmd
               << " cm, PMD_a " << r.scores.pmd_a << " cm, PMD_b " << r.scores.pmd_b << " cm, ELS " << r.scores.els
               << ", penetration " << 100.0 * r.scores.penetration_share << " %\n";
@@ -113,7 +115,8 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   eval->add_option("--methods", o.methods,
                    "Methods to run (default: all the model supports): skinning_baseline, lbs_predicted, "
-                   "body_apparel, full, full_gt_mask, no_geodesic, sort_by_geodesic");
+                   "body_apparel, full, full_gt_mask, no_geodesic, sort_by_geodesic; cloth_retarget and "
+                   "cloth_retarget_unresolved on the clips of garment pairs (amt dataset pairs)");
   eval->add_option("--predictions", command->predictions,
                    "Score a dataset file of predicted vertices (amt animate --out x.h5) instead of running a model");
   eval->add_option("--viewer", command->viewer,

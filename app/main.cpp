@@ -109,6 +109,7 @@ int main(int argc, char** argv) {
   amt::app::add_animate_command(app);
   amt::app::add_bench_command(app);
   amt::app::add_view_command(app);
+  amt::app::add_retarget_cloth_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -433,7 +433,9 @@ int chains_for(int bodies, int n, int lo, int hi) {
   return std::clamp(bodies / std::max(1, n), lo, hi);
 }
 
-PieceLayout layout_skirt(const BodyInfo& info, ApparelKind kind, int bodies, float clearance, std::mt19937& rng) {
+// forced_bones > 0: a topology's bone count instead of the one chosen from the skirt's length.
+PieceLayout layout_skirt(const BodyInfo& info, ApparelKind kind, int bodies, float clearance, std::mt19937& rng,
+                         int forced_bones) {
   PieceLayout piece;
   piece.kind = kind;
   piece.attach = kPelvis;
@@ -448,7 +450,7 @@ PieceLayout layout_skirt(const BodyInfo& info, ApparelKind kind, int bodies, flo
   const float length =
       std::max(0.0f, y_root - info.joint(kLeftHip).y()) + thigh * (pleated ? uniform(rng, 0.6f, 1.1f)
                                                                             : uniform(rng, 0.65f, 1.2f));
-  const int n = length > 0.3f * H ? 5 : 4;
+  const int n = forced_bones > 0 ? forced_bones : length > 0.3f * H ? 5 : 4;
   const int count = chains_for(bodies, n, 8, 16);
   const float flare = (pleated ? uniform(rng, 10.0f, 20.0f) : uniform(rng, 22.0f, 36.0f)) * kDegrees;
   float a, b, zc, ta, tb, tzc;
@@ -764,7 +766,9 @@ void grid_size(int vertices, float width, float length, int min_rows, int min_co
   *cols = c;
 }
 
-void build_sheet(const PieceLayout& piece, const Sheet& s, int vertices, float thickness, MeshBuilder& out) {
+// grid: in, a topology's rows and columns (0, 0: measure them); out, the ones used.
+void build_sheet(const PieceLayout& piece, const Sheet& s, int vertices, float thickness, MeshBuilder& out,
+                 Eigen::Vector2i& grid) {
   const auto& chains = piece.chains;
   const Chain& c0 = chains[s.first];
   const int n = c0.num_bones();
@@ -783,6 +787,8 @@ void build_sheet(const PieceLayout& piece, const Sheet& s, int vertices, float t
   const int band_rows = s.band_top.empty() ? 0 : 2;
   int rows, cols;
   grid_size(vertices / 2, width, length, 2 * n, s.closed ? 2 * gaps : gaps + 1, &rows, &cols);
+  if (grid.x() > 0) rows = grid.x(), cols = grid.y();
+  grid = Eigen::Vector2i(rows, cols);
   const int per_gap = std::max(1, static_cast<int>(std::lround(static_cast<float>(cols - (s.closed ? 0 : 1)) / gaps)));
   const int M = s.closed ? per_gap * gaps : per_gap * gaps + 1;  // columns
   const int R = rows + band_rows;                                 // rows 0..R, the band first
@@ -1122,7 +1128,9 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
 
   // Budgets: vertices and bodies shared between the items.
   const int body_vertices = body.mesh.num_vertices();
-  const float apparel_vertices = options.vertex_fraction / (1 - options.vertex_fraction) * body_vertices;
+  const ApparelTopology& topology = options.topology;
+  const int budget_vertices = topology.empty() ? body_vertices : topology.body_vertices;
+  const float apparel_vertices = options.vertex_fraction / (1 - options.vertex_fraction) * budget_vertices;
   float vshare = 0, bshare = 0;
   for (ApparelKind k : items) {
     vshare += vertex_share(k);
@@ -1136,7 +1144,8 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
     switch (kind) {
       case ApparelKind::kPleatedSkirt:
       case ApparelKind::kFlaredSkirt:
-        pieces.push_back(layout_skirt(info, kind, bb, cl, rng));
+        pieces.push_back(layout_skirt(info, kind, bb, cl, rng,
+                                      topology.bones.size() > pieces.size() ? topology.bones[pieces.size()] : 0));
         break;
       case ApparelKind::kHairSheet:
         pieces.push_back(layout_hair_sheet(info, bb, cl, rng));
@@ -1162,6 +1171,18 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
         break;
     }
     pieces.back().vertex_budget = vb;
+  }
+  ApparelTopology out_topology;
+  // The bones per chain before the trim: this body's, or the topology's (which every kind but the skirts, whose
+  // count is forced above, chooses from the seed alone).
+  out_topology.body_vertices = budget_vertices;
+  for (size_t p = 0; p < pieces.size(); ++p) {
+    const int n = pieces[p].chains.front().num_bones();
+    AMT_CHECK(topology.empty() || (topology.bones.size() == pieces.size() && topology.bones[p] == n),
+              "dress_character: topology: expected ", topology.bones.size(), " pieces with the template's bones (",
+              topology.bones.size() > p ? topology.bones[p] : -1, " for piece ", p, "), found ", pieces.size(),
+              " pieces, ", n, " bones (a template of another seed or options?)");
+    out_topology.bones.push_back(n);
   }
   // Trim chains' bones when the pieces together exceed the body cap (keeps at least 2 bones per chain).
   auto total_bodies = [&]() {
@@ -1212,7 +1233,14 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
     const int parts = static_cast<int>(piece.sheets.size() + piece.tubes.size());
     const int per_part = std::max(40, piece.vertex_budget / std::max(1, parts));
     const float thickness = 0.003f;
-    for (const Sheet& s : piece.sheets) build_sheet(piece, s, per_part, thickness, mb);
+    for (const Sheet& s : piece.sheets) {
+      const size_t k = out_topology.sheets.size();
+      AMT_CHECK(topology.empty() || k < topology.sheets.size(), "dress_character: topology: expected ",
+                topology.sheets.size(), " sheets, found more");
+      Eigen::Vector2i grid = topology.empty() ? Eigen::Vector2i(0, 0) : topology.sheets[k];
+      build_sheet(piece, s, per_part, thickness, mb, grid);
+      out_topology.sheets.push_back(grid);
+    }
     for (const Tube& t : piece.tubes) build_tube(piece, t, per_part, mb);
     piece_of_vertex.resize(mb.V.size(), static_cast<int>(p));
     ApparelPiece ap;
@@ -1229,6 +1257,9 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
     out.pieces.push_back(ap);
   }
 
+  AMT_CHECK(topology.empty() || out_topology.sheets.size() == topology.sheets.size(),
+            "dress_character: topology: expected ", topology.sheets.size(), " sheets, found ", out_topology.sheets.size());
+  out.topology = std::move(out_topology);
   const int na = static_cast<int>(mb.V.size());
   const int N = body_vertices + na;
   out.mesh.V.resize(N, 3);

@@ -46,6 +46,21 @@ const char* apparel_kind_name(ApparelKind kind);
 
 // === Options
 
+/// The counts that fix the connectivity of a dressed character's apparel, which dress_character otherwise
+/// measures on the body (skirt bones from the skirt's length, sheet grids from the sheets' width and length,
+/// vertex budgets from the body's vertex count). Dressing another body with the same seed, options and
+/// topology gives apparel of the same connectivity, only positions differ: one garment template on several
+/// bodies (cloth retargeting's pair sets, data_tools/garment_pairs.h).
+struct ApparelTopology {
+  /// Vertex count of the body the budgets were computed for.
+  int body_vertices = 0;
+  /// Bones per chain of each piece (in DressedCharacter::pieces order, before the max_bodies trim).
+  std::vector<int> bones;
+  /// Rows and columns of each sheet's grid, in build order (piece by piece).
+  std::vector<Eigen::Vector2i> sheets;
+  bool empty() const { return bones.empty(); }
+};
+
 /// Choices of dress_character.
 struct ApparelOptions {
   /// Number of apparel items drawn, uniformly in [min_pieces, max_pieces] (1 <= min <= max <= 6). Sleeves give one
@@ -68,6 +83,9 @@ struct ApparelOptions {
   float stiffness_scale = 1.0f;
   /// Scale (> 0) on the damping of apparel bodies (clamped to [0, 1] after scaling).
   float damping_scale = 1.0f;
+  /// When not empty: the counts of another dressing (DressedCharacter::topology) used instead of the ones
+  /// measured on this body. Throws amt::Error when the items drawn do not fit it (another seed or options).
+  ApparelTopology topology;
 };
 
 /// Throws amt::Error naming the field unless the options are in the ranges documented above.
@@ -120,6 +138,9 @@ struct DressedCharacter {
   std::vector<int32_t> vertex_piece;
   /// Index of each canonical joint's main collision body in rig.bodies (22 entries, all valid).
   std::vector<int32_t> joint_body;
+  /// The counts that fixed the apparel's connectivity (pass as ApparelOptions::topology to dress another body
+  /// with the same garment).
+  ApparelTopology topology;
 
   /// The dataset_file.h Rig: bone names and parents, rest transforms [I | rest position], skin indices and weights
   /// (N, 4) from rig_weights.

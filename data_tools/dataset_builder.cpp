@@ -306,6 +306,39 @@ int committed_clips(const std::string& part, const DatasetPlan& plan, int c, int
 
 // === Options
 
+std::vector<MotionClip> motion_library_of(const DatasetBuildOptions& o, uint64_t seed) {
+  MotionLibraryOptions library;
+  library.bvh_folder = o.motions;
+  library.procedural = o.procedural;
+  library.seed = seed;
+  library.clip_frames = o.frames;
+  library.fps = o.fps;
+  return build_motion_library(library);
+}
+
+Transforms simulate_clip(const DressedCharacter& dressed, const Transforms& joints, int frames,
+                         const DatasetBuildOptions& o, std::unique_ptr<ApparelSimulator>& simulator) {
+  const double dt = 1.0 / o.fps;
+  if (!simulator) {
+    PhysicsSettings physics;
+    physics.fixed_step = o.physics_step;
+    physics.solver_iterations = o.solver_iterations;
+    physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(dt / o.physics_step)));
+    simulator = std::make_unique<ApparelSimulator>(dressed, physics);
+  }
+  const int J = kCanonicalJointCount;
+  auto pose = [&](int t) {
+    return Transforms(joints.begin() + static_cast<ptrdiff_t>(t) * J, joints.begin() + static_cast<ptrdiff_t>(t + 1) * J);
+  };
+  simulator->start(pose(0), o.settle_seconds);
+  Transforms rig = simulator->skinning();
+  for (int t = 1; t < frames; ++t) {
+    const Transforms& step = simulator->step(pose(t), static_cast<float>(dt));
+    rig.insert(rig.end(), step.begin(), step.end());
+  }
+  return rig;
+}
+
 ShardSpec parse_shard(const std::string& text) {
   ShardSpec shard;
   const size_t slash = text.find('/');
@@ -448,13 +481,7 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
   validate_build_options(o);
   DatasetBuildReport report;
 
-  MotionLibraryOptions library;
-  library.bvh_folder = o.motions;
-  library.procedural = o.procedural;
-  library.seed = derive_seed(o.seed, kMotionStream);
-  library.clip_frames = o.frames;
-  library.fps = o.fps;
-  const DatasetPlan plan = plan_dataset(o, build_motion_library(library));
+  const DatasetPlan plan = plan_dataset(o, motion_library_of(o, derive_seed(o.seed, kMotionStream)));
   const json manifest = make_manifest(o, plan);
 
   std::error_code error;
@@ -493,7 +520,6 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
                 << frames_per_character << " frames each)\n";
   }
 
-  const double dt = 1.0 / o.fps;
   int clips_this_run = 0;
   int64_t apparel_bodies = 0;
   int characters_done = 0;
@@ -545,26 +571,8 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
 #ifdef _OPENMP
           thread = omp_get_thread_num();
 #endif
-          if (!simulators[thread]) {
-            PhysicsSettings physics;
-            physics.fixed_step = o.physics_step;
-            physics.solver_iterations = o.solver_iterations;
-            physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(dt / o.physics_step)));
-            simulators[thread] = std::make_unique<ApparelSimulator>(dressed, physics);
-          }
-          ApparelSimulator& simulator = *simulators[thread];
           SimulatedClip& clip = simulated[i];
-          const int J = kCanonicalJointCount;
-          auto pose = [&](int t) {
-            return Transforms(clip.joints.begin() + static_cast<ptrdiff_t>(t) * J,
-                              clip.joints.begin() + static_cast<ptrdiff_t>(t + 1) * J);
-          };
-          simulator.start(pose(0), o.settle_seconds);
-          clip.rig = simulator.skinning();
-          for (int t = 1; t < clip.frames; ++t) {
-            const Transforms& rig = simulator.step(pose(t), static_cast<float>(dt));
-            clip.rig.insert(clip.rig.end(), rig.begin(), rig.end());
-          }
+          clip.rig = simulate_clip(dressed, clip.joints, clip.frames, o, simulators[thread]);
         } catch (...) {
 #pragma omp critical(amt_dataset_build_failure)
           if (!failure) failure = std::current_exception();

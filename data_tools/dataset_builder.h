@@ -27,10 +27,12 @@
 // uninterrupted one.
 #include <cstdint>
 #include <iosfwd>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "data_tools/apparel.h"
+#include "data_tools/apparel_simulation.h"
 #include "data_tools/physics.h"
 #include "data_tools/motion_library.h"
 
@@ -179,6 +181,17 @@ struct DatasetBuildReport {
 /// one Bullet world per thread) and commit, write the record and rename the part to .h5. Progress lines go to
 /// options.progress. Bad input throws amt::Error before any file is touched; finished shards are never modified.
 DatasetBuildReport build_dataset(const DatasetBuildOptions& options);
+
+/// The motion library of the options (BVH folder, procedural clips, frames, fps), procedural motions drawn
+/// from `seed`.
+std::vector<MotionClip> motion_library_of(const DatasetBuildOptions& options, uint64_t seed);
+
+/// Simulates one clip of a dressed character as the builder does: the rig's skinning matrices of every frame
+/// (frames * B transforms, frame-major) under the body's joint transforms `joints` (frames * 22, forward
+/// kinematics), with the options' physics step, solver iterations, frame rate and settle time. `simulator` is
+/// built on first use and reused (one per thread).
+Transforms simulate_clip(const DressedCharacter& dressed, const Transforms& joints, int frames,
+                         const DatasetBuildOptions& options, std::unique_ptr<ApparelSimulator>& simulator);
 
 /// Prints the run's summary: frames per second and the per-stage split of the wall time.
 void print_build_report(const DatasetBuildReport& report, std::ostream& out);

@@ -83,7 +83,7 @@ class WindingNumberTree {
   /// plus the largest displacement of T's corners relative to shift(), checked top-down with the
   /// subtrees' boxes and largest displacements; it stops at the first triangle too near. Always false
   /// before the first refit. This is what lets the runtime skip the winding number of most apparel
-  /// vertices from one frame to the next (infer/penetration_resolution.h).
+  /// vertices from one frame to the next (data_tools/penetration_resolution.h).
   bool stays_clear(const Eigen::Vector3f& p, float point_motion) const;
 
  private:

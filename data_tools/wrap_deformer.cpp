@@ -144,8 +144,9 @@ WrapBinding wrap_register(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3
       binding.face(i, s) = usable[u];
       binding.local.row(i * k + s) = local.transpose();
       binding.rest_offset.row(i * k + s) = (p - centres[u]).transpose();
-      // local.z() is the signed distance to the face's plane.
-      const float w = 1.0f / std::max(std::abs(local.z()), options.min_plane_distance);
+      // local.z() is the signed distance to the face's plane; ranked[s].first the squared distance to the face.
+      const float distance = options.triangle_distance_weights ? std::sqrt(ranked[size_t(s)].first) : std::abs(local.z());
+      const float w = 1.0f / std::max(distance, options.min_plane_distance);
       binding.weight(i, s) = w;
       total += w;
     }

@@ -29,6 +29,11 @@ struct WrapOptions {
   /// Floor on the plane distance in the weight 1 / distance (metres): a point on a face's plane
   /// gets a large but finite weight.
   float min_plane_distance = 1e-4f;
+  /// Weight a face by 1 / the distance to the face itself (the exact point-triangle distance) instead of
+  /// 1 / the distance to its plane. The paper's plane distance lets a face whose plane happens to pass
+  /// near the point dominate however far its triangle is (a skirt vertex carried by a face of the other
+  /// leg); cloth retargeting uses the triangle distance (data_tools/cloth_retarget.h).
+  bool triangle_distance_weights = false;
 };
 
 /// The registration of N points to a deformer mesh: for point i and slot s (s < k),

@@ -13,7 +13,7 @@
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 #include "infer/motion_input.h"
-#include "infer/penetration_resolution.h"
+#include "data_tools/penetration_resolution.h"
 #include "train/pipeline.h"
 
 namespace amt {

@@ -37,6 +37,10 @@ namespace amt {
 ///   full_gt_mask       the full model with the ground-truth apparel mask (Table 4's "G + attention");
 ///   no_geodesic, sort_by_geodesic  the full model, ground-truth mask, with the ablation skinning
 ///                      predictors of Table 4 (only when their checkpoints are in the model folder).
+///   cloth_retarget     on clips that are the target of a garment pair (data_tools/garment_pairs.h): the
+///                      apparel of the pair's other body, simulated under the same motion, retargeted onto
+///                      this clip's ground-truth body (data_tools/cloth_retarget.h); no network;
+///   cloth_retarget_unresolved  the same without the push-out of apparel vertices inside the body.
 std::vector<std::string> evaluation_methods();
 
 /// Human-readable label of a method key ("Full model (GT mask)").

@@ -328,6 +328,16 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
                 "The full model with the ground-truth apparel mask and each skinning predictor variant: geodesic "
                 "attention (the paper's), without geodesic distances, joints sorted by geodesic distance.",
                 {"full_gt_mask", "no_geodesic", "sort_by_geodesic"});
+    if (std::any_of(result.rows.begin(), result.rows.end(),
+                    [](const MethodScores& r) { return r.method.rfind("cloth_retarget", 0) == 0; })) {
+      write_table(md, result, "Cloth retargeting on garment pairs",
+                  "Clips whose character shares its garment (apparel connectivity) and motion with another body of "
+                  "the file (amt dataset pairs): the other body's simulated apparel retargeted onto this body "
+                  "(body-oriented apparel + detail vectors, cloth-retargeting paper 2.2; detail vectors shortened, "
+                  "3.1; without and with the push-out of 3.2), scored against this body's own simulation, beside "
+                  "rigid skinning and the learned model on the same clips.",
+                  {"skinning_baseline", "hold_offset", "full", "cloth_retarget_unresolved", "cloth_retarget"});
+    }
   }
 
   // Paper protocol per horizon: the teacher-forced one-step error (horizon 1) next to the error a few

@@ -47,19 +47,26 @@ TEST(WrapDeformer, FaceFrameIsTheEdgeTheNormalAndTheirCross) {
   EXPECT_FALSE(face_frame(m.V, m.F, 0, R, c));
 }
 
-TEST(WrapDeformer, WeightsAreInverseToThePlaneDistances) {
-  // Two parallel unit triangles, at z = 0 and z = 4; a point at z = 1 above both: plane distances 1
-  // and 3, weights 3/4 and 1/4.
-  TriMesh m;
+// A unit triangle in z = 0 and its copy moved by `shift` (mesh), and the point (0.25, 0.25, 1) bound to both.
+WrapBinding two_triangles(const Vector3f& shift, bool triangle_weights, TriMesh& m) {
   m.V.resize(6, 3);
-  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 4, 1, 0, 4, 0, 1, 4;
+  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  m.V.bottomRows(3).rowwise() += shift.transpose();
   m.F.resize(2, 3);
   m.F << 0, 1, 2, 3, 4, 5;
   MatrixX3f p(1, 3);
   p << 0.25f, 0.25f, 1.0f;
   WrapOptions o;
   o.faces = 2;
-  const WrapBinding b = wrap_register(m.V, m.F, p, o);
+  o.triangle_distance_weights = triangle_weights;
+  return wrap_register(m.V, m.F, p, o);
+}
+
+TEST(WrapDeformer, WeightsAreInverseToThePlaneDistances) {
+  // Two parallel unit triangles, at z = 0 and z = 4; a point at z = 1 above both: plane distances 1
+  // and 3, weights 3/4 and 1/4.
+  TriMesh m;
+  const WrapBinding b = two_triangles(Vector3f(0, 0, 4), false, m);
   ASSERT_EQ(b.k, 2);
   EXPECT_EQ(b.face(0, 0), 0);  // the nearer first
   EXPECT_EQ(b.face(0, 1), 1);
@@ -95,15 +102,30 @@ Scene sphere_scene(int points, uint32_t seed) {
 
 TEST(WrapDeformer, RestShapeIsReproducedAndRigidMotionCarriedExactly) {
   const Scene s = sphere_scene(200, 3);
-  const WrapBinding b = wrap_register(s.body.V, s.body.F, s.points);
-  ASSERT_EQ(b.num_points(), 200);
-  for (int i = 0; i < 200; ++i) EXPECT_NEAR(b.weight.row(i).sum(), 1.0f, 1e-5f);
-  EXPECT_LT((wrap_deform(b, s.body.V, s.body.F) - s.points).cwiseAbs().maxCoeff(), 1e-5f);
-  const Eigen::Matrix3f R = Eigen::AngleAxisf(0.7f, Vector3f(1, 2, -0.5f).normalized()).toRotationMatrix();
-  const Eigen::RowVector3f t(0.4f, -1.2f, 2.0f);
-  const MatrixX3f moved = (s.body.V * R.transpose()).rowwise() + t;
-  const MatrixX3f expected = (s.points * R.transpose()).rowwise() + t;
-  EXPECT_LT((wrap_deform(b, moved, s.body.F) - expected).cwiseAbs().maxCoeff(), 1e-5f);
+  for (const bool triangle : {false, true}) {
+    WrapOptions o;
+    o.triangle_distance_weights = triangle;
+    const WrapBinding b = wrap_register(s.body.V, s.body.F, s.points, o);
+    ASSERT_EQ(b.num_points(), 200);
+    for (int i = 0; i < 200; ++i) EXPECT_NEAR(b.weight.row(i).sum(), 1.0f, 1e-5f);
+    EXPECT_LT((wrap_deform(b, s.body.V, s.body.F) - s.points).cwiseAbs().maxCoeff(), 1e-5f);
+    const Eigen::Matrix3f R = Eigen::AngleAxisf(0.7f, Vector3f(1, 2, -0.5f).normalized()).toRotationMatrix();
+    const Eigen::RowVector3f t(0.4f, -1.2f, 2.0f);
+    const MatrixX3f moved = (s.body.V * R.transpose()).rowwise() + t;
+    const MatrixX3f expected = (s.points * R.transpose()).rowwise() + t;
+    EXPECT_LT((wrap_deform(b, moved, s.body.F) - expected).cwiseAbs().maxCoeff(), 1e-5f);
+  }
+}
+
+TEST(WrapDeformer, TriangleDistanceWeightsAreInverseToTheDistancesToTheFaces) {
+  // The copy moved by (3, 0, 0.5): the point is 1 from the first face and sqrt(2.75^2 + 0.5^2) from the
+  // second (beyond its edge), though only 0.5 from its plane.
+  TriMesh m;
+  const WrapBinding b = two_triangles(Vector3f(3, 0, 0.5f), true, m);
+  const float d2 = std::sqrt(2.75f * 2.75f + 0.5f * 0.5f);
+  EXPECT_EQ(b.face(0, 0), 0);
+  EXPECT_NEAR(b.weight(0, 0), d2 / (1 + d2), 1e-5f);
+  EXPECT_NEAR(b.weight(0, 1), 1 / (1 + d2), 1e-5f);
 }
 
 TEST(WrapDeformer, BindsTheNearestFacesByBruteForce) {

@@ -340,12 +340,15 @@ TEST(Report, WritesTablesJsonAndPlots) {
   options.progress = false;
   options.penetration = false;
   const EvaluationResult result = evaluate_model(bundle, {dir + "/lbs.h5"}, options);
-  // No ablation checkpoints in the folder: the report says so; the inertial rule's fitted inertia and
-  // the anchor of the module (a fresh local module's: attachment), which the rules share.
-  ASSERT_EQ(result.notes.size(), 4u);
+  // No ablation checkpoints in the folder: the report says so; the inertial rule's fitted inertia, the
+  // anchor of the module, which the rules share, and the cloth retargeting of the held-out clip whose
+  // character shares its apparel connectivity with a training character (every character of this
+  // dataset is dressed alike).
+  ASSERT_EQ(result.notes.size(), 5u);
   EXPECT_NE(result.notes[0].find("skinning_no_geodesic.ckpt is not in the model folder"), std::string::npos);
   EXPECT_NE(result.notes[2].find("inertial rule: inertia"), std::string::npos);
   EXPECT_EQ(result.notes[3].rfind("apparel anchor: " + bundle.apparel_anchor() + " (", 0), 0u) << result.notes[3];
+  EXPECT_EQ(result.notes[4].rfind("cloth_retarget: 1 held-out clip(s)", 0), 0u) << result.notes[4];
 
   ReportOptions report;
   report.out_dir = dir + "/out";

@@ -1,4 +1,4 @@
-#include "infer/penetration_resolution.h"
+#include "data_tools/penetration_resolution.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // Penetration resolution on a constructed case: a flat sheet (apparel) cut through a closed sphere
 // (body). Every sheet vertex inside the sphere must end outside it, at the surface plus the margin.
-#include "infer/penetration_resolution.h"
+#include "data_tools/penetration_resolution.h"
 
 #include <gtest/gtest.h>
 
