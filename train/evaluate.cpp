@@ -54,6 +54,9 @@ const std::vector<MethodSpec>& method_specs() {
       {"apparel_gt", "gt_weights", PipelineStages::kBodyApparel, ApparelSource::kNetwork},
       {"lbs_predicted", "predicted", PipelineStages::kBodyOnly},
       {"body_apparel", "predicted", PipelineStages::kBodyApparel},
+      // The inertial rule on the same inputs as the full model (predicted mask and weights): the like-for-like
+      // zero-network baseline of the whole pipeline, as `inertial` is of the apparel module.
+      {"inertial_predicted", "predicted", PipelineStages::kBodyApparel, ApparelSource::kInertial},
       {"full", "predicted", PipelineStages::kFull},
       {"full_gt_mask", "gt_mask", PipelineStages::kFull},
       {"no_geodesic", "gt_mask_no_geodesic", PipelineStages::kFull},
@@ -565,6 +568,7 @@ std::string method_label(const std::string& method) {
       {"apparel_gt", "Apparel module, GT mask + weights"},
       {"lbs_predicted", "LBS, predicted weights (body module only)"},
       {"body_apparel", "Body + apparel modules"},
+      {"inertial_predicted", "inertial rule, predicted mask + weights"},
       {"full", "Full model"},
       {"full_gt_mask", "Full model + GT mask (G + attention)"},
       {"no_geodesic", "w/o G (GT mask)"},

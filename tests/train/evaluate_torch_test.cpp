@@ -282,14 +282,23 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
   const ModelBundle bundle = load_model_bundle(dir);
   ASSERT_TRUE(bundle.local_apparel());
   EvaluateOptions options;
-  options.methods = {"skinning_baseline", "hold_offset", "inertial", "body_apparel", "full"};
+  options.methods = {"skinning_baseline", "hold_offset", "inertial", "body_apparel", "inertial_predicted", "full"};
   options.progress = false;
   const EvaluationResult result = evaluate_model(bundle, {data}, options);
+  // inertial_predicted runs the rule on the full model's bind: its body is skinned by the predicted weights of
+  // a fresh network, not by the ground-truth weights `inertial` uses (exact on this skinned data), and its
+  // apparel (the predicted mask's) comes from the rule, not from the fresh apparel module of body_apparel.
+  const MethodScores* rule_predicted = result.find("inertial_predicted", "paper", kHeldOutCharacters);
+  ASSERT_NE(rule_predicted, nullptr);
+  EXPECT_LT(result.find("inertial", "paper", kHeldOutCharacters)->scores.pmd_b, 1e-3);
+  EXPECT_GT(std::fabs(rule_predicted->scores.pmd_a - result.find("body_apparel", "paper", kHeldOutCharacters)->scores.pmd_a),
+            0.1);
+  EXPECT_GT(rule_predicted->scores.pmd_b, result.find("inertial", "paper", kHeldOutCharacters)->scores.pmd_b + 0.1);
   // The inertia is fitted on the train character's train clip.
   EXPECT_EQ(result.inertia_clips, 1);
   EXPECT_GE(result.inertia, 0.0);
   EXPECT_LE(result.inertia, 1.0);
-  for (const char* method : {"hold_offset", "inertial", "body_apparel", "full"}) {
+  for (const char* method : {"hold_offset", "inertial", "body_apparel", "inertial_predicted", "full"}) {
     const MethodScores* paper = result.find(method, "paper", kHeldOutCharacters);
     ASSERT_NE(paper, nullptr) << method;
     EXPECT_EQ(paper->scores.frames, 14) << method;
