@@ -19,8 +19,9 @@
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
-# with normalised inputs and target, noise on its input history and a curriculum of rollouts
-# (1, then 5, then 20 frames; a fifth of the windows rolled out from the rest pose).
+# with normalised inputs and target, noise on its input history, a curriculum of rollouts (1, then 5,
+# then 20 frames; a fifth of the windows rolled out from the rest pose), up to 40 frames of free run
+# on its own predictions before them (pushforward) and the per-vertex distance as the loss.
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
@@ -78,12 +79,14 @@ if [[ $modules == *" skinning "* ]]; then
     --variant sorted --skinning-options "$skinning"
 fi
 if [[ $modules == *" apparel "* ]]; then
-  # The apparel module (23-frame windows: 3 ground-truth states and up to 20 rolled-out frames), then
+  # The apparel module (63-frame windows: 3 ground-truth states, up to 40 free-run frames without
+  # gradient and up to 20 rolled-out frames with it), then
   # the refiner on its rollouts with the body skinned by the ground-truth weights (as the apparel
   # module's anchors are during training).
   apparel_then_refiner() {
-    run apparel apparel "${common[@]}" --steps "${APPAREL_STEPS:-12000}" --window 23 --apparel-form local \
-      --unroll 1:0.3,5:0.6,20:1 --noise 0.001 --rest-start 0.2 --apparel-options "$apparel" &&
+    run apparel apparel "${common[@]}" --steps "${APPAREL_STEPS:-6000}" --window 63 --free-run 40 \
+      --apparel-loss distance --apparel-form local --unroll 1:0.3,5:0.6,20:1 --noise 0.003 --rest-start 0.2 \
+      --apparel-options "$apparel" &&
       run refiner refiner "${common[@]}" --steps "${REFINER_STEPS:-2000}" --apparel "$out/apparel.ckpt" \
         --refiner-options "$refiner"
   }
