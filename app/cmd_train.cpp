@@ -171,6 +171,9 @@ void add_train_command(CLI::App& app) {
   train->add_option("--resume", o.resume,
                     "Continue from this checkpoint (seed, lr, batch and window come from it; --steps is the total; "
                     "apparel_refiner: the refiner.ckpt)");
+  train->add_option("--init", o.init,
+                    "Start from this checkpoint's network (options, weights, normalisers) with a fresh optimizer, "
+                    "step 0 and this run's schedule (fine-tuning, e.g. a rollout curriculum after one-step training)");
   train->add_option("--apparel", o.apparel_checkpoint,
                     "refiner: the trained apparel module; apparel_refiner --resume: the apparel checkpoint "
                     "(default: apparel.ckpt next to the resumed refiner.ckpt)");

@@ -37,6 +37,9 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"apparel_anchor_weights", &BoundCharacter::apparel_anchor_weights},
           {"apparel_frame_joints", &BoundCharacter::apparel_frame_joints},
           {"apparel_rest_features", &BoundCharacter::apparel_rest_features},
+          {"apparel_contact_rest", &BoundCharacter::apparel_contact_rest},
+          {"apparel_contact_weights", &BoundCharacter::apparel_contact_weights},
+          {"apparel_ancestors", &BoundCharacter::apparel_ancestors},
           {"vertex_weights", &BoundCharacter::vertex_weights}};
 }
 

@@ -34,6 +34,14 @@ at::Tensor vertex_rotations(const at::Tensor& transforms, const at::Tensor& fram
   return transforms.narrow(-1, 0, 3).index_select(2, frame_joints);
 }
 
+// The contact points P (B, N_a, 3) of one frame: the rest points p (N_a, 3) skinned with weights W
+// (N_a, J) by that frame's transforms T (B, J, 3, 4), sum_j W_ij (R_j p_i + t_j).
+at::Tensor contact_points(const at::Tensor& p, const at::Tensor& W, const at::Tensor& T) {
+  const int64_t B = T.size(0), J = T.size(1), N = p.size(0);
+  const at::Tensor M = at::matmul(W, T.reshape({B, J, 12})).view({B, N, 3, 4});  // blended [R | t] per point
+  return (M.narrow(-1, 0, 3) * p.view({1, N, 1, 3})).sum(-1) + M.select(-1, 3);
+}
+
 // Detail vectors of the three history frames: d[k] (B, N_a, 3) for frames t-3+k.
 std::vector<at::Tensor> history_details(const at::Tensor& history, const at::Tensor& anchors, const at::Tensor& R) {
   std::vector<at::Tensor> d;
@@ -42,7 +50,7 @@ std::vector<at::Tensor> history_details(const at::Tensor& history, const at::Ten
 }
 
 void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g, int64_t J,
-                  const char* who) {
+                  bool contact, int64_t reach, const char* who) {
   TORCH_CHECK(h.dim() == 4 && h.size(1) == 3 && h.size(3) == 3, who, ": history must be (3, N_a, 3) or (B, 3, N_a, 3), got ",
               h.sizes());
   const int64_t B = h.size(0), N = h.size(2);
@@ -57,6 +65,16 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
               who, ": graph.rest_features must be (", N, ", ", kApparelRestChannels, ")");
   TORCH_CHECK(g.neighbors.defined() && g.neighbors.dim() == 2 && g.neighbors.size(0) == N, who,
               ": graph.neighbors must be (", N, ", K_max)");
+  TORCH_CHECK(reach == 0 || (g.ancestors.defined() && g.ancestors.dim() == 2 && g.ancestors.size(0) == N &&
+                              g.ancestors.size(1) >= reach),
+              who, ": ", reach, " reach levels need graph.ancestors (", N, ", >= ", reach, ") (apparel_graph)");
+  if (contact) {
+    TORCH_CHECK(g.contact_rest.defined() && g.contact_rest.dim() == 2 && g.contact_rest.size(0) == N &&
+                    g.contact_rest.size(1) == 3 && g.contact_weights.defined() && g.contact_weights.dim() == 2 &&
+                    g.contact_weights.size(0) == N && g.contact_weights.size(1) == J,
+                who, ": the contact inputs need graph.contact_rest (", N, ", 3) and graph.contact_weights (", N, ", ", J,
+                ") (apparel_graph with the body weights)");
+  }
 }
 
 }  // namespace
@@ -70,6 +88,9 @@ namespace {
 struct Attachment {
   std::vector<float> distance;
   std::vector<int64_t> body_vertex;
+  /// The next apparel vertex (position in apparel_ids) on the shortest path towards the attachment,
+  /// or the vertex itself where the path leaves the apparel (a seed) or there is none.
+  std::vector<int64_t> toward_body;
 };
 
 Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
@@ -78,6 +99,8 @@ Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::T
   Attachment out;
   out.distance.assign(static_cast<size_t>(N_a), 0.0f);
   out.body_vertex.assign(static_cast<size_t>(N_a), -1);
+  out.toward_body.resize(static_cast<size_t>(N_a));
+  for (int64_t i = 0; i < N_a; ++i) out.toward_body[i] = i;
   if (N_a == 0 || body_ids.size(0) == 0) return out;
   const at::Tensor Vc = V.to(at::kFloat).contiguous(), E = edges.to(at::kLong).contiguous();
   const float* v = Vc.data_ptr<float>();
@@ -145,6 +168,7 @@ Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::T
       if (d + l < dist[j]) {
         queue.emplace(dist[j] = d + l, j);
         source[j] = source[i];
+        out.toward_body[j] = i;
       }
     }
   }
@@ -156,6 +180,21 @@ Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::T
 }
 
 }  // namespace
+
+at::Tensor chain_ancestors(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                           const at::Tensor& body_ids, int64_t levels) {
+  TORCH_CHECK(levels >= 0, "chain_ancestors: levels must be >= 0, got ", levels);
+  const Attachment a = attachments(V, edges, apparel_ids, body_ids);
+  const int64_t N_a = apparel_ids.size(0);
+  std::vector<int64_t> out(static_cast<size_t>(N_a * levels));
+  std::vector<int64_t> up = a.toward_body, next(up.size());  // 2^0 hops
+  for (int64_t l = 0; l < levels; ++l) {
+    for (int64_t i = 0; i < N_a; ++i) out[i * levels + l] = up[i];
+    for (int64_t i = 0; i < N_a; ++i) next[i] = up[up[i]];  // 2^(l+1) hops (a seed points at itself)
+    up.swap(next);
+  }
+  return at::tensor(out, at::kLong).view({N_a, levels});
+}
 
 at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
                                 const at::Tensor& body_ids) {
@@ -181,7 +220,7 @@ at::Tensor attachment_anchor_weights(const at::Tensor& V, const at::Tensor& edge
 
 ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
                            const at::Tensor& body_ids, const at::Tensor& anchor_weights, const at::Tensor& rest_joints,
-                           const at::Tensor& apparel_neighbors) {
+                           const at::Tensor& apparel_neighbors, const at::Tensor& body_weights) {
   torch::NoGradGuard no_grad;
   ApparelGraph g;
   g.neighbors = apparel_neighbors;
@@ -190,6 +229,11 @@ ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const a
   const at::Tensor A_rest = V.to(at::kFloat).index_select(0, apparel_ids.to(at::kLong));
   const at::Tensor to_joint = A_rest - rest_joints.to(at::kFloat).index_select(0, g.frame_joints);
   at::Tensor to_body = at::zeros({N_a, 3}, at::kFloat);
+  if (body_weights.defined()) {
+    // Without body vertices the contact point is the vertex itself, carried by its anchor.
+    g.contact_rest = A_rest.contiguous();
+    g.contact_weights = anchor_weights.to(at::kFloat).contiguous();
+  }
   if (N_a > 0 && body_ids.size(0) > 0) {
     const at::Tensor Vc = V.to(at::kFloat).contiguous();
     const at::Tensor ids = apparel_ids.to(at::kLong).contiguous(), bids = body_ids.to(at::kLong).contiguous();
@@ -199,9 +243,20 @@ ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const a
         std::vector<int32_t>(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + N_a));
     const at::Tensor nearest_ids = at::tensor(std::vector<int64_t>(nearest.begin(), nearest.end()), at::kLong);
     to_body = Vc.index_select(0, nearest_ids) - A_rest;
+    if (body_weights.defined()) {
+      TORCH_CHECK(body_weights.dim() == 2 && body_weights.size(0) == body_ids.size(0),
+                  "apparel_graph: body_weights must be (", body_ids.size(0), ", J), got ", body_weights.sizes());
+      // nearest_ids are mesh indices; body_weights rows are positions in body_ids (ascending).
+      const int64_t* first = bids.data_ptr<int64_t>();
+      std::vector<int64_t> rows(static_cast<size_t>(N_a));
+      for (int64_t i = 0; i < N_a; ++i) rows[i] = std::lower_bound(first, first + bids.numel(), nearest[i]) - first;
+      g.contact_rest = Vc.index_select(0, nearest_ids).contiguous();
+      g.contact_weights = body_weights.to(at::kFloat).index_select(0, at::tensor(rows, at::kLong)).contiguous();
+    }
   }
   g.rest_features = at::cat({to_joint, to_body, attachment_distances(V, edges, apparel_ids, body_ids).unsqueeze(1)}, 1)
                         .contiguous();
+  g.ancestors = chain_ancestors(V, edges, apparel_ids, body_ids, kApparelReachLevels);
   return g;
 }
 
@@ -289,17 +344,19 @@ ApparelDynamicsNetImpl::ApparelDynamicsNetImpl(ApparelDynamicsOptions options_) 
   TORCH_CHECK(options.num_joints > 0, "ApparelDynamicsNet: num_joints must be positive");
   TORCH_CHECK(!options.edge_widths.empty(), "ApparelDynamicsNet: needs at least one EdgeConv block");
   TORCH_CHECK(options.inertia >= 0.0 && options.inertia <= 1.0, "ApparelDynamicsNet: inertia must be in [0, 1]");
-  input_normalizer = register_module("input_normalizer", RunningNormalizer(kChannels, /*centred=*/true));
+  TORCH_CHECK(options.reach_levels >= 0 && options.reach_levels <= kApparelReachLevels,
+              "ApparelDynamicsNet: reach_levels must be in [0, ", kApparelReachLevels, "]");
+  input_normalizer = register_module("input_normalizer", RunningNormalizer(channels(), /*centred=*/true));
   target_normalizer = register_module("target_normalizer", RunningNormalizer(3, /*centred=*/false));
-  int64_t channels = kChannels;
+  int64_t width = channels();
   for (size_t l = 0; l < options.edge_widths.size(); ++l) {
-    EdgeConvOptions block(channels, options.edge_widths[l]);
+    EdgeConvOptions block(width, options.edge_widths[l]);
     block.negative_slope = options.negative_slope;
     block.naive = options.naive_edge_conv;
     blocks_.push_back(register_module("edge_conv" + std::to_string(l), EdgeConv(block)));
-    channels = options.edge_widths[l];
+    width = options.edge_widths[l];
   }
-  std::vector<int64_t> decoder = {channels};
+  std::vector<int64_t> decoder = {width};
   decoder.insert(decoder.end(), options.decoder_widths.begin(), options.decoder_widths.end());
   decoder.push_back(3);
   MlpOptions decoder_options(decoder);
@@ -310,7 +367,7 @@ ApparelDynamicsNetImpl::ApparelDynamicsNetImpl(ApparelDynamicsOptions options_) 
 
 at::Tensor ApparelDynamicsNetImpl::features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
                                             const ApparelGraph& g) const {
-  check_inputs(h, T, S, g, options.num_joints, "ApparelDynamicsNet");
+  check_inputs(h, T, S, g, options.num_joints, options.contact, options.reach_levels, "ApparelDynamicsNet");
   return features_from(h, T, S, g, vertex_rotations(T, g.frame_joints));
 }
 
@@ -326,11 +383,18 @@ at::Tensor ApparelDynamicsNetImpl::features_from(const at::Tensor& h, const at::
   };
   const at::Tensor gravity = -Rj.select(1, 3).select(-2, 1).index_select(1, g.frame_joints);  // R_t^T (0, -1, 0)
   const at::Tensor Sm = S.narrow(1, 1, 3) - S.narrow(1, 0, 3);  // (B, 3, N_a, 3): S_{k+1} - S_k
-  return at::cat({d[2], d[2] - d[1], d[1] - d[0],
-                  to_frame(R1, Sm.select(1, 2)), to_frame(R1, Sm.select(1, 1)), to_frame(R1, Sm.select(1, 0)),
-                  to_frame(R1, h.select(1, 2) - h.select(1, 1)), turn(2, 3), turn(1, 2), gravity,
-                  g.rest_features.unsqueeze(0).expand({B, N, kApparelRestChannels})},
-                 2);
+  std::vector<at::Tensor> channels = {d[2], d[2] - d[1], d[1] - d[0],
+                                      to_frame(R1, Sm.select(1, 2)), to_frame(R1, Sm.select(1, 1)),
+                                      to_frame(R1, Sm.select(1, 0)), to_frame(R1, h.select(1, 2) - h.select(1, 1)),
+                                      turn(2, 3), turn(1, 2), gravity,
+                                      g.rest_features.unsqueeze(0).expand({B, N, kApparelRestChannels})};
+  if (options.contact) {
+    const at::Tensor P_last = contact_points(g.contact_rest, g.contact_weights, T.select(1, 2));
+    const at::Tensor P_next = contact_points(g.contact_rest, g.contact_weights, T.select(1, 3));
+    channels.push_back(to_frame(R1, P_next - h.select(1, 2)));
+    channels.push_back(to_frame(R1, P_next - P_last));
+  }
+  return at::cat(channels, 2);
 }
 
 at::Tensor ApparelDynamicsNetImpl::rule_detail(const at::Tensor& d_last, const at::Tensor& d_before) const {
@@ -341,11 +405,14 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
                                         const at::Tensor& anchors, const ApparelGraph& g, at::Tensor* detail) {
   const bool unbatched = history.dim() == 3;
   const at::Tensor h = batched(history, 3), T = batched(transforms, 4), S = batched(anchors, 3);
-  check_inputs(h, T, S, g, options.num_joints, "ApparelDynamicsNet");
+  check_inputs(h, T, S, g, options.num_joints, options.contact, options.reach_levels, "ApparelDynamicsNet");
   const at::Tensor R = vertex_rotations(T, g.frame_joints);
   const at::Tensor H = features_from(h, T, S, g, R);
   at::Tensor x = input_normalizer->normalize(H);
-  for (EdgeConv& block : blocks_) x = block->forward(x, g.neighbors);  // eq. (13)
+  // The mesh neighbours, and with reach levels the chain's ancestors 1, 2, 4, ... hops towards the body.
+  const at::Tensor neighbors =
+      options.reach_levels > 0 ? at::cat({g.neighbors, g.ancestors.narrow(1, 0, options.reach_levels)}, 1) : g.neighbors;
+  for (EdgeConv& block : blocks_) x = block->forward(x, neighbors);  // eq. (13)
   const at::Tensor change = target_normalizer->denormalize(decoder_->forward(x));
   // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
   const at::Tensor d_last = H.narrow(2, 0, 3);

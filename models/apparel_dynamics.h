@@ -43,7 +43,26 @@ struct ApparelGraph {
   /// joint's rest position (3), the offset from the vertex to its nearest body vertex (3), and its
   /// attachment distance (1, attachment_distances).
   at::Tensor rest_features;
+  /// Contact inputs (ApparelDynamicsOptions::contact): (N_a, 3) float rest position of each apparel
+  /// vertex's nearest body vertex, and (N_a, J) float that body vertex's skinning weights, which carry it
+  /// through the motion (the body part the vertex can touch: a hem's thigh, a strand's shoulder, which
+  /// the attachment anchor does not see). Undefined when apparel_graph had no body weights.
+  at::Tensor contact_rest, contact_weights;
+  /// (N_a, kApparelReachLevels) int64: each vertex's ancestors 1, 2, 4, ... hops up its chain towards
+  /// where its piece attaches (chain_ancestors), extra neighbours that let a few blocks see the chain
+  /// above a vertex (ApparelDynamicsOptions::reach_levels).
+  at::Tensor ancestors;
 };
+
+/// Columns of ApparelGraph::ancestors: ancestors up to 2^5 = 32 hops.
+inline constexpr int64_t kApparelReachLevels = 6;
+
+/// Jump pointers up each apparel vertex's shortest path to where its piece attaches (the paths of
+/// attachment_distances): column l holds the apparel vertex 2^l hops up (a position in apparel_ids),
+/// or the path's first apparel vertex where the path is shorter; the first vertex points at itself.
+///   V (N, 3); edges (E, 2) int64; apparel_ids (N_a), body_ids (N_b) int64 ascending -> (N_a, levels).
+at::Tensor chain_ancestors(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                           const at::Tensor& body_ids, int64_t levels);
 
 /// Channels of ApparelGraph::rest_features.
 inline constexpr int64_t kApparelRestChannels = 7;
@@ -72,10 +91,12 @@ at::Tensor apparel_anchor_weights_for(const std::string& anchor, const at::Tenso
 /// The ApparelGraph of a character:
 ///   V (N, 3) rest positions; edges (E, 2) int64 mesh edges; apparel_ids (N_a), body_ids (N_b) int64;
 ///   anchor_weights (N_a, J) the anchor skinning weights (apparel_anchor_weights); rest_joints (J, 3);
-///   apparel_neighbors (N_a, K_max) the neighbour table of the apparel graph.
+///   apparel_neighbors (N_a, K_max) the neighbour table of the apparel graph; body_weights (N_b, J) the
+///   body vertices' skinning weights in body_ids order, for the contact inputs (undefined: none; without
+///   body vertices the contact point is the apparel vertex itself, carried by its anchor weights).
 ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
                            const at::Tensor& body_ids, const at::Tensor& anchor_weights, const at::Tensor& rest_joints,
-                           const at::Tensor& apparel_neighbors);
+                           const at::Tensor& apparel_neighbors, const at::Tensor& body_weights = {});
 
 // === Detail vectors and the zero-network rules
 
@@ -162,6 +183,16 @@ struct ApparelDynamicsOptions {
   double inertia = 0.0;
   /// Evaluate the EdgeConv blocks per edge instead of factorised (reference and benchmark only).
   bool naive_edge_conv = false;
+  /// Contact inputs: where the vertex's nearest body vertex will be after the body's next move, relative
+  /// to the vertex, and that move (HOOD's body edges; ApparelGraph::contact_rest). Checkpoints written
+  /// before this field existed have none (false).
+  bool contact = true;
+  /// Columns of ApparelGraph::ancestors added to every block's neighbours (0: mesh neighbours only):
+  /// 6 lets three blocks see up to 96 hops up a chain, where mesh neighbours alone see 3 (the median
+  /// apparel vertex of data/default is 9-21 hops from its attachment). Off by default: in 3000 one-step
+  /// steps it lowered the validation loss by 1 % only (models/pretrained/README.md). Checkpoints
+  /// written before this field existed have 0.
+  int64_t reach_levels = 0;
 };
 
 /// f_d in local coordinates: apparel history, the motion and the anchors of frames t-3..t -> A^(t).
@@ -169,8 +200,10 @@ class ApparelDynamicsNetImpl : public torch::nn::Module {
  public:
   explicit ApparelDynamicsNetImpl(ApparelDynamicsOptions options = {});
 
-  /// Per-vertex input channels (the normaliser's width).
+  /// Per-vertex input channels without and with the contact inputs (channels(): the normaliser's width).
   static constexpr int64_t kChannels = 30 + kApparelRestChannels;
+  static constexpr int64_t kContactChannels = 6;
+  int64_t channels() const { return kChannels + (options.contact ? kContactChannels : 0); }
 
   /// The raw (unnormalised) input channels H (B, N_a, kChannels) for the frame t:
   ///   history (B, 3, N_a, 3) A^(t-3), A^(t-2), A^(t-1), metres;
@@ -183,7 +216,9 @@ class ApparelDynamicsNetImpl : public torch::nn::Module {
   ///   21-23, 24-26 the frame joint's rotation over the step into t and the step before, as the
   ///   axial vector of R_a^T R_b (sin(angle) times the axis);
   ///   27-29 gravity's direction (0, -1, 0) in the frame at t;
-  ///   30-36 ApparelGraph::rest_features.
+  ///   30-36 ApparelGraph::rest_features;
+  ///   with options.contact, 37-39 P_t - A_{t-1} and 40-42 P_t - P_{t-1}, P the vertex's contact point
+  ///   (its nearest body vertex, skinned: ApparelGraph::contact_rest, contact_weights).
   at::Tensor features(const at::Tensor& history, const at::Tensor& transforms, const at::Tensor& anchors,
                       const ApparelGraph& graph) const;
 

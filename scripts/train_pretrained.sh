@@ -10,7 +10,8 @@
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (12000), SKINNING_STEPS (6000, also for each Table 4
-# variant, so the three compare at the same budget), APPAREL_STEPS (12000), REFINER_STEPS (2000).
+# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000) and APPAREL_STEPS
+# (3000) for the apparel module's two stages, REFINER_STEPS (2000).
 #
 # The segmenter and the skinning runs go side by side, one thread each; the apparel module trains
 # with one thread beside them, then the refiner on its rollouts. Every run uses AdamW at 5e-4 with a
@@ -19,9 +20,10 @@
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
-# with normalised inputs and target, noise on its input history, a curriculum of rollouts (1, then 5,
-# then 20 frames; a fifth of the windows rolled out from the rest pose), up to 40 frames of free run
-# on its own predictions before them (pushforward) and the per-vertex distance as the loss.
+# with normalised inputs and target and contact inputs (its nearest body vertex), noise on its input
+# history; first 30000 one-step steps, then from that network a curriculum of rollouts (5, then 20
+# frames; a fifth of the windows rolled out from the rest pose) with up to 40 frames of free run on its
+# own predictions before them (pushforward); the per-vertex distance as the loss.
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
@@ -42,8 +44,8 @@ segmenter='{"encoder_widths":[32,64,128],"decoder_widths":[64,32]}'
 skinning='{"feature_widths":[32,32],"attention_widths":[16,16],"head_encoder_widths":[32,64,128],"head_decoder_widths":[64,32]}'
 apparel='{"edge_widths":[48,48,48],"decoder_widths":[48],"inertia":0.6}'
 refiner='{"hidden_widths":[32,32]}'
-common=(--data "$data" --out "$out" --seed "$seed" --lr 5e-4 --lr-schedule cosine --batch 1 --threads 1
-        --checkpoint-every 1000 --validate-every 1000 --validation-samples 16)
+base=(--data "$data" --seed "$seed" --lr-schedule cosine --batch 1 --threads 1 --validation-samples 16)
+common=("${base[@]}" --out "$out" --lr 5e-4 --checkpoint-every 1000 --validate-every 1000)
 
 start_all=$SECONDS
 run() {  # run NAME ARGS...: one training run and its wall time
@@ -83,10 +85,17 @@ if [[ $modules == *" apparel "* ]]; then
   # gradient and up to 20 rolled-out frames with it), then
   # the refiner on its rollouts with the body skinned by the ground-truth weights (as the apparel
   # module's anchors are during training).
+  # Two stages: many cheap one-step (teacher-forced, noised) steps, where the network learns the
+  # dynamics, then the rollout curriculum from that network (--init), where it learns to stay stable
+  # on its own predictions. The one-step stage writes into <out>/apparel_one_step/.
   apparel_then_refiner() {
-    run apparel apparel "${common[@]}" --steps "${APPAREL_STEPS:-6000}" --window 63 --free-run 40 \
-      --apparel-loss distance --apparel-form local --unroll 1:0.3,5:0.6,20:1 --noise 0.003 --rest-start 0.2 \
-      --apparel-options "$apparel" &&
+    run apparel_one_step apparel "${base[@]}" --out "$out/apparel_one_step" --lr 5e-4 \
+      --steps "${APPAREL_ONE_STEP_STEPS:-30000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
+      --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.003 --apparel-options "$apparel" &&
+      run apparel apparel "${base[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
+        --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
+        --steps "${APPAREL_STEPS:-3000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
+        --noise 0.003 --rest-start 0.2 &&
       run refiner refiner "${common[@]}" --steps "${REFINER_STEPS:-2000}" --apparel "$out/apparel.ckpt" \
         --refiner-options "$refiner"
   }

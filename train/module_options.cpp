@@ -62,6 +62,8 @@ void visit(ApparelDynamicsOptions& o, Visitor&& v) {
   v("negative_slope", o.negative_slope);
   v("inertia", o.inertia);
   v("naive_edge_conv", o.naive_edge_conv);
+  v("contact", o.contact);
+  v("reach_levels", o.reach_levels);
 }
 
 template <typename Visitor>
@@ -225,6 +227,9 @@ void options_from_json(const std::string& text, const std::string& source, Appar
   // choice anchored at the nearest body vertex. (A fragment such as --apparel-options keeps the default.)
   const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (j.contains("form") && !j.contains("anchor")) options.anchor = "nearest";
+  // Likewise one written before the contact inputs has none.
+  if (j.contains("form") && !j.contains("contact")) options.contact = false;
+  if (j.contains("form") && !j.contains("reach_levels")) options.reach_levels = 0;
   AMT_CHECK(options.anchor == "attachment" || options.anchor == "nearest", source,
             ": options.anchor: expected \"attachment\" or \"nearest\", found \"", options.anchor, "\"");
   AMT_CHECK(options.form == "local", source, ": options.form: expected \"local\" (the apparel dynamics module), found \"",

@@ -86,10 +86,13 @@ at::Tensor submesh_geodesics(const MatrixX3f& V, const MatrixX3i& F, const Matri
 
 // The local apparel module's per-character inputs from the bound parts and anchor weights.
 void set_apparel_graph(BoundCharacter& c) {
-  const ApparelGraph g =
-      apparel_graph(c.V, c.edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights, c.joints, c.apparel_neighbors);
+  const ApparelGraph g = apparel_graph(c.V, c.edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights, c.joints,
+                                       c.apparel_neighbors, c.body_weights);
   c.apparel_frame_joints = g.frame_joints;
   c.apparel_rest_features = g.rest_features;
+  c.apparel_contact_rest = g.contact_rest;
+  c.apparel_contact_weights = g.contact_weights;
+  c.apparel_ancestors = g.ancestors;
 }
 
 }  // namespace

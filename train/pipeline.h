@@ -131,6 +131,10 @@ struct BoundCharacter {
   /// The local apparel module's per-character inputs (ApparelGraph): each apparel vertex's frame
   /// joint (N_a) int64 and rest channels (N_a, kApparelRestChannels) float.
   at::Tensor apparel_frame_joints, apparel_rest_features;
+  /// Its contact inputs (ApparelGraph::contact_rest (N_a, 3), contact_weights (N_a, J) float).
+  at::Tensor apparel_contact_rest, apparel_contact_weights;
+  /// Its chain ancestors (ApparelGraph::ancestors (N_a, kApparelReachLevels) int64).
+  at::Tensor apparel_ancestors;
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;
@@ -139,7 +143,10 @@ struct BoundCharacter {
   int64_t num_apparel() const { return apparel_ids.size(0); }
   int64_t num_body() const { return body_ids.size(0); }
   /// The ApparelGraph of the local apparel module (neighbour table, frame joints, rest channels).
-  ApparelGraph apparel_graph() const { return {apparel_neighbors, apparel_frame_joints, apparel_rest_features}; }
+  ApparelGraph apparel_graph() const {
+    return {apparel_neighbors, apparel_frame_joints, apparel_rest_features, apparel_contact_rest,
+            apparel_contact_weights, apparel_ancestors};
+  }
 };
 
 /// Binds a character to the model:

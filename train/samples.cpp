@@ -230,7 +230,7 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->edges, t->apparel_ids,
                                                            t->body_ids, t->body_weights.index_select(0, t->body_ids));
     t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
-                                     t->apparel_neighbors);
+                                     t->apparel_neighbors, t->body_weights.index_select(0, t->body_ids));
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.
       std::vector<int32_t> body_index(N, -1);

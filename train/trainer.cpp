@@ -570,6 +570,19 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     AMT_CHECK(resumed[i].step == resumed[0].step, resume_paths[i], ": step: expected ", resumed[0].step,
               " (the step of ", resume_paths[0], ", written by the same run), found ", resumed[i].step);
   }
+  // --init: the network of another run's checkpoint, as a fresh run of this one (its options and
+  // weights; this run's config, optimizer and step 0).
+  std::vector<CheckpointInfo> initial;
+  std::vector<std::string> init_paths;
+  if (!o.init.empty()) {
+    AMT_CHECK(o.resume.empty(), "--init ", o.init, " and --resume ", o.resume,
+              ": expected one (--init starts a new run from a network, --resume continues a run)");
+    AMT_CHECK(!end_to_end, "--init: the end-to-end run (", kEndToEndMode, ") starts from scratch or resumes");
+    initial = {read_checkpoint_info(o.init, kind)};
+    init_paths = {o.init};
+  }
+  const std::vector<CheckpointInfo>& network_infos = resumed.empty() ? initial : resumed;
+  const std::vector<std::string>& network_paths = resume_paths.empty() ? init_paths : resume_paths;
   AMT_CHECK(o.batch >= 1, "--batch: expected >= 1, found ", o.batch);
   AMT_CHECK(o.window >= 4, "--window: expected >= 4 (3 history states and a target), found ", o.window);
   AMT_CHECK(o.skinning_frames >= 1, "--skinning-frames: expected >= 1, found ", o.skinning_frames);
@@ -583,8 +596,8 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
 
   // The local apparel module: a fresh run's form from the options, a resumed one's from its checkpoint.
   const bool local_apparel = !end_to_end && kind == ModuleKind::kApparel &&
-                             (resumed.empty() ? o.networks.apparel_form == "local"
-                                              : is_local_apparel_options(resumed[0].options_json));
+                             (network_infos.empty() ? o.networks.apparel_form == "local"
+                                                    : is_local_apparel_options(network_infos[0].options_json));
   if (local_apparel) {
     AMT_CHECK(o.free_run >= 0, "--free-run: expected >= 0 frames, found ", o.free_run);
     AMT_CHECK(o.window >= 3 + o.free_run + longest_unroll(o.unroll), "--window: expected >= ",
@@ -605,7 +618,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   // The anchor of the local apparel module being trained, or of the frozen one a refiner trains on.
   if (local_apparel) {
     ApparelDynamicsOptions a = o.networks.apparel_dynamics;
-    if (!resumed.empty()) options_from_json(resumed[0].options_json, resume_paths[0], a);
+    if (!network_infos.empty()) options_from_json(network_infos[0].options_json, network_paths[0], a);
     sampling.apparel_anchor = a.anchor;
   } else if (kind == ModuleKind::kRefiner && !end_to_end && !o.apparel_checkpoint.empty()) {
     const CheckpointInfo frozen = read_checkpoint_info(o.apparel_checkpoint, ModuleKind::kApparel);
@@ -636,8 +649,9 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   }
 
   torch::manual_seed(o.seed);
-  Task task =
-      make_task(kind, end_to_end, resumed, resume_paths, o, static_cast<int64_t>(joint_names.size()), joint_names);
+  for (size_t i = 0; i < initial.size(); ++i) check_checkpoint_skeleton(init_paths[i], initial[i], joint_names);
+  Task task = make_task(kind, end_to_end, network_infos, network_paths, o, static_cast<int64_t>(joint_names.size()),
+                        joint_names);
   std::error_code error;
   std::filesystem::create_directories(o.out_dir, error);
   AMT_CHECK(!error, o.out_dir, ": cannot create the output folder (", error.message(), ")");
@@ -648,6 +662,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     part.optimizer = std::make_unique<torch::optim::AdamW>(
         part.module->parameters(), torch::optim::AdamWOptions(o.learning_rate).weight_decay(o.weight_decay));
     if (!resume_paths.empty()) load_checkpoint(resume_paths[i], part.kind, *part.module, part.optimizer.get());
+    if (!init_paths.empty()) load_checkpoint(init_paths[i], part.kind, *part.module, nullptr);
     part.module->train();
     part.checkpoint = (std::filesystem::path(o.out_dir) / (part.stem + ".ckpt")).string();
     result.checkpoints.push_back(part.checkpoint);

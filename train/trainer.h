@@ -106,6 +106,10 @@ struct TrainOptions {
   std::string out_dir = ".";
   /// Checkpoint to resume from (empty: a fresh run). End-to-end run: the refiner's checkpoint.
   std::string resume;
+  /// Checkpoint whose network (options, weights, normalisers) a fresh run starts from, with a fresh
+  /// optimizer, step 0 and this run's own schedule (fine-tuning; empty: a fresh network). Not with
+  /// `resume` or the end-to-end run.
+  std::string init;
   /// Refiner only: the trained apparel module (required), whose rollout gives Â. End-to-end run: the
   /// apparel checkpoint resumed along with `resume` (empty: apparel.ckpt next to it).
   std::string apparel_checkpoint;

@@ -58,6 +58,12 @@ ApparelGraph chain_graph(int64_t N, int64_t J) {
   g.neighbors = neighbor_table(N, at::tensor(e, at::kLong).view({-1, 2}));
   g.frame_joints = at::arange(N, at::kLong).remainder(J);
   g.rest_features = at::randn({N, kApparelRestChannels});
+  g.contact_rest = at::randn({N, 3});
+  g.contact_weights = at::softmax(at::randn({N, J}), 1);
+  // The strip hangs from vertex 0: vertex i's ancestor 2^l hops up is max(i - 2^l, 0).
+  g.ancestors = at::empty({N, kApparelReachLevels}, at::kLong);
+  for (int64_t i = 0; i < N; ++i)
+    for (int64_t l = 0; l < kApparelReachLevels; ++l) g.ancestors[i][l] = std::max<int64_t>(i - (int64_t(1) << l), 0);
   return g;
 }
 
@@ -85,7 +91,7 @@ TEST(ApparelDynamics, FeaturesMatchAnIndependentPerVertexComputation) {
   const at::Tensor T = random_transforms(4, J), A = at::randn({3, N, 3}), S = at::randn({4, N, 3});
   ApparelDynamicsNet net(ApparelDynamicsOptions{"local", J});
   const at::Tensor H = net->features(A.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0), g).squeeze(0);
-  ASSERT_EQ(H.size(1), ApparelDynamicsNetImpl::kChannels);
+  ASSERT_EQ(H.size(1), ApparelDynamicsNetImpl::kChannels + ApparelDynamicsNetImpl::kContactChannels);
   for (int64_t i = 0; i < N; ++i) {
     const int64_t j = g.frame_joints[i].item<int64_t>();
     Eigen::Matrix3f R[4];
@@ -112,6 +118,42 @@ TEST(ApparelDynamics, FeaturesMatchAnIndependentPerVertexComputation) {
         EXPECT_NEAR(H[i][3 * c + x].item<float>(), expected[c](x), 1e-5) << "vertex " << i << " group " << c;
     for (int64_t x = 0; x < kApparelRestChannels; ++x)
       EXPECT_EQ(H[i][30 + x].item<float>(), g.rest_features[i][x].item<float>());
+    // The contact point: the rest point skinned by hand, sum_j w_j (R_j p + t_j), at t-1 and t.
+    const auto contact = [&](int k) {
+      Eigen::Vector3f P = Eigen::Vector3f::Zero();
+      for (int64_t b = 0; b < J; ++b) {
+        P += g.contact_weights[i][b].item<float>() *
+             (matrix(T[k][b].narrow(1, 0, 3)) * vec(g.contact_rest[i]) + vec(T[k][b].select(1, 3)));
+      }
+      return P;
+    };
+    const Eigen::Vector3f to_contact = R[2].transpose() * (contact(3) - a(2));
+    const Eigen::Vector3f contact_move = R[2].transpose() * (contact(3) - contact(2));
+    for (int x = 0; x < 3; ++x) {
+      EXPECT_NEAR(H[i][37 + x].item<float>(), to_contact(x), 1e-5) << "vertex " << i;
+      EXPECT_NEAR(H[i][40 + x].item<float>(), contact_move(x), 1e-5) << "vertex " << i;
+    }
+  }
+}
+
+TEST(ApparelDynamics, WithoutContactTheFeaturesAreTheFirstChannels) {
+  torch::manual_seed(6);
+  const int64_t N = 4, J = 2;
+  ApparelGraph g = chain_graph(N, J);
+  const at::Tensor T = random_transforms(4, J).unsqueeze(0), A = at::randn({1, 3, N, 3}), S = at::randn({1, 4, N, 3});
+  ApparelDynamicsOptions o{"local", J};
+  const at::Tensor with = ApparelDynamicsNet(o)->features(A, T, S, g);
+  o.contact = false;
+  const at::Tensor without = ApparelDynamicsNet(o)->features(A, T, S, g);
+  ASSERT_EQ(without.size(2), ApparelDynamicsNetImpl::kChannels);
+  EXPECT_TRUE(at::equal(without, with.narrow(2, 0, ApparelDynamicsNetImpl::kChannels)));
+  // A contact module on a graph without contact inputs is refused with a message, not misread.
+  g.contact_rest = at::Tensor();
+  try {
+    ApparelDynamicsNet(ApparelDynamicsOptions{"local", J})->features(A, T, S, g);
+    FAIL() << "expected an error";
+  } catch (const c10::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("contact_rest"), std::string::npos) << e.what();
   }
 }
 
@@ -244,6 +286,53 @@ TEST(ApparelDynamics, AttachmentDistancesAlongTheApparel) {
   const at::Tensor d = attachment_distances(V, E, at::tensor({1, 2, 3, 4, 5}, at::kLong), at::tensor({0}, at::kLong));
   const std::vector<float> expected = {1.f, 2.f, 3.f, 0.5f, 2.5f};
   for (int i = 0; i < 5; ++i) EXPECT_NEAR(d[i].item<float>(), expected[i], 1e-6) << i;
+}
+
+TEST(ApparelDynamics, ChainAncestorsArePowersOfTwoHopsTowardsTheAttachment) {
+  // Body vertex 0; a chain of 9 apparel vertices 1..9 along x hanging from it, and a separate piece
+  // 10-11 whose vertex 10 is nearest the body. Positions in apparel_ids: vertex v at v - 1.
+  std::vector<float> v = {0.f, 0.f, 0.f};
+  for (int i = 1; i <= 9; ++i) v.insert(v.end(), {float(i), 0.f, 0.f});
+  v.insert(v.end(), {0.f, 0.5f, 0.f, 0.f, 2.5f, 0.f});
+  std::vector<int64_t> e;
+  for (int64_t i = 0; i < 9; ++i) e.insert(e.end(), {i, i + 1});
+  e.insert(e.end(), {10, 11});
+  const at::Tensor V = at::tensor(v).view({12, 3}), E = at::tensor(e, at::kLong).view({-1, 2});
+  const at::Tensor apparel = at::arange(1, 12, at::kLong), body = at::tensor({0}, at::kLong);
+  const at::Tensor up = chain_ancestors(V, E, apparel, body, 4);
+  ASSERT_EQ(up.sizes(), (at::IntArrayRef{11, 4}));
+  // Chain position p (vertex p + 1) is p hops below the first apparel vertex (position 0).
+  for (int64_t p = 0; p < 9; ++p)
+    for (int64_t l = 0; l < 4; ++l) EXPECT_EQ(up[p][l].item<int64_t>(), std::max<int64_t>(p - (1 << l), 0)) << p << " " << l;
+  // The separate piece hangs from its vertex nearest the body (position 9): both point there.
+  for (int64_t l = 0; l < 4; ++l) {
+    EXPECT_EQ(up[9][l].item<int64_t>(), 9);
+    EXPECT_EQ(up[10][l].item<int64_t>(), 9);
+  }
+  EXPECT_EQ(chain_ancestors(V, E, apparel, body, 0).size(1), 0);
+}
+
+TEST(ApparelDynamics, ReachLevelsLetTheTipSeeTheChainAbove) {
+  // A 40-vertex strip with one block: without reach the tip's output depends only on its 1-ring; with
+  // 6 reach levels it also moves when the chain 32 hops above it changes.
+  torch::manual_seed(8);
+  const int64_t N = 40, J = 2;
+  const ApparelGraph g = chain_graph(N, J);
+  const at::Tensor T = random_transforms(4, J), A = at::randn({3, N, 3}), S = at::randn({4, N, 3});
+  at::Tensor A2 = A.clone();
+  A2.select(1, N - 1 - 32).add_(0.5);
+  for (int64_t reach : {int64_t(0), kApparelReachLevels}) {
+    ApparelDynamicsOptions o{"local", J};
+    o.edge_widths = {16};
+    o.reach_levels = reach;
+    ApparelDynamicsNet net(o);
+    net->freeze_normalizers();
+    torch::NoGradGuard no_grad;
+    for (auto& p : net->parameters()) p.copy_(0.3 * at::randn(p.sizes()));
+    const float change = (net->step(A2, T, S, g) - net->step(A, T, S, g))[N - 1].abs().max().item<float>();
+    if (reach == 0) EXPECT_EQ(change, 0.0f);
+    else EXPECT_GT(change, 1e-4f);
+  }
 }
 
 TEST(ApparelDynamics, AttachmentAnchorsFollowWhereThePieceHangsFrom) {

@@ -79,6 +79,22 @@ TEST(ModuleOptions, ApparelAnchorOfOldCheckpointsIsTheNearestBodyVertex) {
   ApparelDynamicsOptions round;
   options_from_json(options_to_json(old), "x.ckpt", round);
   EXPECT_EQ(round.anchor, "nearest");
+  // Likewise the contact inputs: a new module has them, an old checkpoint's options (the shipped
+  // attachment-anchored module's among them) do not, and the choice survives a round trip.
+  EXPECT_TRUE(fresh.contact);
+  EXPECT_FALSE(old.contact);
+  ApparelDynamicsOptions attachment_old;
+  options_from_json("{\"form\":\"local\",\"anchor\":\"attachment\",\"inertia\":0.6}", "old.ckpt", attachment_old);
+  EXPECT_FALSE(attachment_old.contact);
+  EXPECT_EQ(attachment_old.anchor, "attachment");
+  EXPECT_FALSE(round.contact);
+  EXPECT_TRUE(fragment.contact);
+  // Reach levels: none in an old checkpoint; a value survives the round trip.
+  EXPECT_EQ(attachment_old.reach_levels, 0);
+  ApparelDynamicsOptions reach, reach2;
+  reach.reach_levels = 6;
+  options_from_json(options_to_json(reach), "x.ckpt", reach2);
+  EXPECT_EQ(reach2.reach_levels, 6);
   ApparelDynamicsOptions bad;
   try {
     options_from_json("{\"anchor\":\"farthest\"}", "x.ckpt", bad);

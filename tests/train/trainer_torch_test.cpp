@@ -328,6 +328,43 @@ TEST(LocalApparel, FreeRunAndDistanceLossAreSeededResumeExactlyAndAreStored) {
   EXPECT_NE(error.find("--free-run 6"), std::string::npos) << error;
 }
 
+TEST(LocalApparel, InitStartsANewRunFromAnotherRunsNetwork) {
+  // One-step training, then a run with its own schedule from that network: step 0, a fresh optimizer,
+  // the first run's options, weights and normalisers; its first loss is the first run's network's.
+  test::use_one_thread();
+  TrainOptions one_step = tiny_options("init_source");
+  one_step.steps = 3;
+  one_step.networks.apparel_dynamics.edge_widths = {6, 5};
+  const TrainResult source = train_module(ModuleKind::kApparel, {split_dataset()}, one_step);
+  TrainOptions tuned = tiny_options("init_tuned");
+  tuned.steps = 2;
+  tuned.unroll = "2:1";
+  tuned.init = source.checkpoint;
+  const TrainResult r = train_module(ModuleKind::kApparel, {split_dataset()}, tuned);
+  EXPECT_EQ(r.first_step, 0);
+  ASSERT_EQ(r.losses.size(), 2u);
+  CheckpointInfo a, b;
+  ApparelDynamicsNet from = load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(source.checkpoint,
+                                                                                         ModuleKind::kApparel, a);
+  ApparelDynamicsNet to = load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(r.checkpoint,
+                                                                                       ModuleKind::kApparel, b);
+  EXPECT_EQ(b.options_json, a.options_json);  // the widths 6, 5 came from the source, not the defaults
+  EXPECT_EQ(b.step, 2);
+  EXPECT_TRUE(at::equal(to->input_normalizer->scale, from->input_normalizer->scale));
+  // The same run from a fresh network of those options starts elsewhere: the weights were loaded.
+  TrainOptions fresh = tuned;
+  fresh.out_dir = (test_dir() / "init_fresh").string();
+  fresh.init.clear();
+  fresh.networks.apparel_dynamics.edge_widths = {6, 5};
+  EXPECT_NE(train_module(ModuleKind::kApparel, {split_dataset()}, fresh).losses[0], r.losses[0]);
+  // --init with --resume is refused, naming both.
+  TrainOptions both = tuned;
+  both.resume = r.checkpoint;
+  const std::string error = error_of([&] { train_module(ModuleKind::kApparel, {split_dataset()}, both); });
+  EXPECT_NE(error.find("--init"), std::string::npos) << error;
+  EXPECT_NE(error.find("--resume"), std::string::npos) << error;
+}
+
 TEST(LocalApparel, NormalisersAreSetBeforeTheFirstStepAndKeptByTheCheckpoint) {
   test::use_one_thread();
   TrainOptions o = tiny_options("local_normalisers");
