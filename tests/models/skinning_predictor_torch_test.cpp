@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <string>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "data_tools/lbs_torch.h"
 #include "models/losses.h"
@@ -90,6 +92,15 @@ TEST(SkinningPredictor, AblationVariantsGiveValidWeights) {
   expect_rows_sum_to_one(SkinningPredictor(options)->forward(in.V, in.joints, in.G));
 }
 
+// softmax over joints of -k g, by hand: the attention a hand-made f_m(g) = -k g gives one row.
+std::vector<double> softmax_of_minus(double k, const std::vector<double>& g) {
+  double sum = 0;
+  std::vector<double> out;
+  for (double x : g) out.push_back(std::exp(-k * x)), sum += out.back();
+  for (double& x : out) x /= sum;
+  return out;
+}
+
 TEST(SkinningPredictor, AttentionFollowsGeodesicDistances) {
   torch::manual_seed(4);
   SkinningPredictorOptions options;
@@ -101,6 +112,48 @@ TEST(SkinningPredictor, AttentionFollowsGeodesicDistances) {
   EXPECT_TRUE(at::allclose(M1.flip(1), M2, 1e-5, 1e-6));  // f_m is per entry (with row context)
   EXPECT_THROW(net->forward(in.V, in.joints, at::Tensor()), c10::Error);
   EXPECT_THROW(net->forward(in.V, in.joints.narrow(0, 0, 4), in.G), c10::Error);
+
+  // A hand-made f_m: its hidden unit is 0.5 G_ij + 0.5 (G_ij - min_k G_ik) >= 0 (LeakyReLU passes it) and
+  // its output -k times that, so M_i = softmax_j(-k G_ij) (the row's constant cancels): attention falls
+  // off with the geodesic distance at a rate we know. Inputs unnormalised, so G is used as given.
+  SkinningPredictorOptions hand;
+  hand.num_joints = 3;
+  hand.attention_widths = {1};
+  hand.normalize_input = false;
+  SkinningPredictor h(hand);
+  const double k = 10.0;  // per metre
+  {
+    torch::NoGradGuard no_grad;
+    auto p = h->named_parameters();
+    p["attention.linear0.weight"].copy_(at::tensor({0.5f, 0.5f}).view({1, 2}));
+    p["attention.linear0.bias"].zero_();
+    p["attention.linear1.weight"].fill_(-k);
+    p["attention.linear1.bias"].zero_();
+  }
+  // A hip (0), an elbow (1) and a wrist (2); one vertex 5 cm from the hip, 25 cm from the wrist. As the
+  // thigh's skin it is geodesically nearest the hip; as a fingertip hanging beside the thigh the same
+  // point is geodesically nearest the wrist, the hip far along the arm and torso.
+  const at::Tensor joints = at::tensor({0.0f, 1.0f, 0.0f, 0.3f, 1.3f, 0.0f, 0.3f, 1.0f, 0.0f}).view({3, 3});
+  const at::Tensor V = at::tensor({0.05f, 1.0f, 0.0f}).view({1, 3});
+  const std::vector<double> thigh = {0.05, 0.6, 0.9}, fingertip = {0.9, 0.3, 0.25};
+  const auto attention = [&](const std::vector<double>& g) {
+    return h->forward_detailed(V, joints, at::tensor(std::vector<float>(g.begin(), g.end())).view({1, 3}));
+  };
+  const SkinningOutput on_thigh = attention(thigh), on_finger = attention(fingertip);
+  for (const auto& [g, out] : {std::pair{thigh, on_thigh}, std::pair{fingertip, on_finger}}) {
+    const std::vector<double> expected = softmax_of_minus(k, g);
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(out.M[0][j].item<double>(), expected[size_t(j)], 1e-6) << "joint " << j;
+  }
+  EXPECT_EQ(on_thigh.M.argmax(-1).item<int64_t>(), 0);
+  EXPECT_EQ(on_finger.M.argmax(-1).item<int64_t>(), 2);  // the wrist, though the hip is nearer in space
+  // 5 cm more to one joint scales its attention against the others' by exp(-k 0.05).
+  std::vector<double> farther = fingertip;
+  farther[2] += 0.05;
+  const at::Tensor M3 = attention(farther).M;
+  EXPECT_NEAR((M3[0][2] / M3[0][1]).item<double>(), (on_finger.M[0][2] / on_finger.M[0][1]).item<double>() * std::exp(-k * 0.05),
+              1e-5);
+  // Geodesics alone (same point, same joints) change the predicted weights.
+  EXPECT_FALSE(at::allclose(on_thigh.W, on_finger.W, 0.0, 1e-6));
 }
 
 // Rotation matrix (3, 3) of the axis-angle vector w (3): exp of its skew matrix.
