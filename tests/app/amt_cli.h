@@ -76,11 +76,22 @@ inline std::string write_example_dataset(const std::filesystem::path& dir) {
   return "ex.h5";
 }
 
-/// `amt dataset build` of the smallest dataset: dir/data, one 1000-vertex dressed character simulated under
-/// two procedural clips (one of them held out) of 4 frames. Returns "data" (relative to dir).
+/// The arguments of `amt dataset build` of the smallest dataset into "data": one 1000-vertex dressed
+/// character simulated under two procedural clips (one of them held out) of 4 frames, on one thread,
+/// with the options in `changed` given other values (or added).
+inline std::vector<std::string> tiny_build(const std::map<std::string, std::string>& changed = {}) {
+  std::map<std::string, std::string> options = {{"--out", "data"},     {"--characters", "1"}, {"--motions", ""},
+                                                {"--procedural", "2"}, {"--frames", "4"},     {"--vertices", "1000"},
+                                                {"--threads", "1"}};
+  for (const auto& [option, value] : changed) options[option] = value;
+  std::vector<std::string> args = {"dataset", "build"};
+  for (const auto& [option, value] : options) args.insert(args.end(), {option, value});
+  return args;
+}
+
+/// Runs tiny_build() in `dir`; returns "data" (the dataset folder, relative to dir).
 inline std::string build_tiny_dataset(const std::filesystem::path& dir) {
-  expect_success(dir, {"dataset", "build", "--out", "data", "--characters", "1", "--motions", "", "--procedural", "2",
-                       "--frames", "4", "--vertices", "1000", "--threads", "1"});
+  expect_success(dir, tiny_build());
   return "data";
 }
 

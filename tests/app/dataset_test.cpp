@@ -35,9 +35,7 @@ void expect_errors(const fs::path& dir, const std::vector<Case>& cases, int stat
 
 TEST(DatasetBuildCommand, BuildsATinyDatasetThatInfoCheckAndPreviewRead) {
   const fs::path dir = test::temp_dir("dataset_build_tiny");
-  const test::CommandResult built = test::expect_success(
-      dir, {"dataset", "build", "--out", "data", "--characters", "1", "--motions", "", "--procedural", "2", "--frames", "4",
-            "--vertices", "1000", "--threads", "1"});
+  const test::CommandResult built = test::expect_success(dir, test::tiny_build());
   EXPECT_EQ(built.out, "wrote data\n");
   EXPECT_NE(built.err.find("built 1 characters (0 already done), 2 clips (0 already done)"), std::string::npos)
       << built.err;
@@ -72,9 +70,7 @@ TEST(DatasetBuildCommand, BuildsATinyDatasetThatInfoCheckAndPreviewRead) {
 
   // The same build again: everything already done, nothing rewritten.
   const std::string bytes = test::read_file_bytes(shard);
-  const test::CommandResult again = test::expect_success(
-      dir, {"dataset", "build", "--out", "data", "--characters", "1", "--motions", "", "--procedural", "2", "--frames", "4",
-            "--vertices", "1000", "--threads", "1"});
+  const test::CommandResult again = test::expect_success(dir, test::tiny_build());
   EXPECT_NE(again.err.find("built 0 characters (1 already done), 0 clips (2 already done)"), std::string::npos)
       << again.err;
   EXPECT_EQ(test::read_file_bytes(shard), bytes);
@@ -85,15 +81,7 @@ TEST(DatasetBuildCommand, BadSettingsAndOutputsAreRefusedAndLeaveTheFolderUntouc
   test::users_folder(dir, "mine");
   std::ofstream(dir / "notes.txt") << "the user's notes\n";
   const auto before = test::snapshot(dir);
-  // The tiny build's options with `changed` ones replaced.
-  const auto build = [](const std::map<std::string, std::string>& changed) {
-    std::map<std::string, std::string> options = {{"--out", "data"},     {"--characters", "1"}, {"--motions", ""},
-                                                  {"--procedural", "2"}, {"--frames", "4"},     {"--vertices", "1000"}};
-    for (const auto& [option, value] : changed) options[option] = value;
-    std::vector<std::string> args = {"dataset", "build", "--threads", "1"};
-    for (const auto& [option, value] : options) args.insert(args.end(), {option, value});
-    return args;
-  };
+  const auto build = [](const std::map<std::string, std::string>& changed) { return test::tiny_build(changed); };
   expect_errors(dir, {{build({{"--shard", "2/1"}}), {"--shard: expected i/n", "found '2/1'"}},
                       {build({{"--vertices", "10"}}), {"--vertices: expected 1000 to", "found 10"}},
                       {build({{"--motions", "missing"}}), {"missing: --motions: no such folder"}},
