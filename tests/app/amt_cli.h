@@ -44,7 +44,28 @@ inline void expect_one_line_error(const CommandResult& r, const std::vector<std:
   EXPECT_EQ(r.out, "");
   EXPECT_EQ(r.err.rfind("amt: error: ", 0), 0u) << r.err;
   EXPECT_EQ(line_count(r.err), 1u) << "expected one line: " << r.err;
-  for (const std::string& f : fragments) EXPECT_NE(r.err.find(f), std::string::npos) << "no '" << f << "' in: " << r.err;
+  for (const std::string& f : fragments)
+    EXPECT_NE(r.err.find(f), std::string::npos) << "no '" << f << "' in: " << r.err;
+}
+
+/// A run that must fail: its arguments and the fragments its one line must hold.
+struct ErrorCase {
+  std::vector<std::string> args;
+  std::vector<std::string> fragments;
+};
+
+std::map<std::string, std::string> snapshot(const std::filesystem::path& dir);
+
+/// Runs every case in `dir`, each a one-line error with `status` (expect_one_line_error), and expects
+/// the folder byte for byte as it was before them: nothing written, nothing removed.
+inline void expect_errors_writing_nothing(const std::filesystem::path& dir, const std::vector<ErrorCase>& cases,
+                                          int status = 1) {
+  const auto before = snapshot(dir);
+  for (const ErrorCase& c : cases) {
+    SCOPED_TRACE(shell_command("amt", c.args));
+    expect_one_line_error(run_amt(dir, c.args), c.fragments, status);
+  }
+  EXPECT_EQ(snapshot(dir), before);
 }
 
 /// Everything under `dir`: relative path -> bytes of each file, "<folder>/" -> "" for each folder.

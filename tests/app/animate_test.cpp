@@ -22,8 +22,18 @@ namespace fs = std::filesystem;
 
 // `amt animate` of the example's capsules with its walk, 3 frames, into `out`, plus `extra`.
 std::vector<std::string> animate(const std::string& out, const std::vector<std::string>& extra = {}) {
-  std::vector<std::string> args = {"animate", "--character", "ex.h5:capsules", "--motion", "ex.h5:capsules_walk",
-                                   "--model", test::shipped_model(), "--frames", "3", "--threads", "1", "--quiet"};
+  std::vector<std::string> args = {"animate",
+                                   "--character",
+                                   "ex.h5:capsules",
+                                   "--motion",
+                                   "ex.h5:capsules_walk",
+                                   "--model",
+                                   test::shipped_model(),
+                                   "--frames",
+                                   "3",
+                                   "--threads",
+                                   "1",
+                                   "--quiet"};
   if (!out.empty()) args.insert(args.end(), {"--out", out});
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
@@ -64,30 +74,22 @@ TEST(AnimateCommand, BadInputsAreOneLineErrorsNamingTheFileAndWriteNothing) {
   fs::create_directories(dir / "folder.bvh");
   std::ofstream(dir / "truncated.bvh") << "HIERARCHY\nROOT hips\n{\n  OFFSET 0 0\n";
   std::ofstream(dir / "mask.json") << "[1, 0\n";
-  const auto before = test::snapshot(dir);
   const auto with = [](std::vector<std::string> args, const std::string& option, const std::string& value) {
     for (size_t k = 0; k + 1 < args.size(); ++k) {
       if (args[k] == option) args[k + 1] = value;
     }
     return args;
   };
-  struct Case {
-    std::vector<std::string> args;
-    std::vector<std::string> fragments;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<test::ErrorCase> cases = {
       {with(animate("out.glb"), "--character", "missing.obj"), {"missing.obj: character: expected a file, found none"}},
       {with(animate("out.glb"), "--motion", "folder.bvh"), {"folder.bvh: ", "found a folder"}},
       {with(animate("out.glb"), "--motion", "truncated.bvh"),
        {"truncated.bvh:4: OFFSET of joint 'hips': expected 3 numbers", "found end of file"}},
       {with(animate("out.glb"), "--character", "ex.h5:nobody"), {"ex.h5: /characters/nobody: expected a character"}},
       {animate("out.glb", {"--apparel-mask", "mask.json"}), {"mask.json: apparel mask: expected a JSON array of 0/1"}},
-      {with(animate("out.glb"), "--model", (dir / "folder.bvh").string()), {"folder.bvh/segmenter.ckpt: no such checkpoint"}}};
-  for (const Case& c : cases) {
-    SCOPED_TRACE(test::shell_command("amt", c.args));
-    test::expect_one_line_error(test::run_amt(dir, c.args), c.fragments);
-  }
-  EXPECT_EQ(test::snapshot(dir), before);  // no output, no bind cache, no temporary
+      {with(animate("out.glb"), "--model", (dir / "folder.bvh").string()),
+       {"folder.bvh/segmenter.ckpt: no such checkpoint"}}};
+  test::expect_errors_writing_nothing(dir, cases);  // no output, no bind cache or report, no temporary
 }
 
 TEST(AnimateCommand, RefusesOutputsThatWouldReplaceWhatAmtDidNotWriteAndLeavesThemUntouched) {
@@ -96,18 +98,16 @@ TEST(AnimateCommand, RefusesOutputsThatWouldReplaceWhatAmtDidNotWriteAndLeavesTh
   test::users_folder(dir, "mine");
   test::users_folder(dir, "album.glb");
   std::ofstream(dir / "notes.txt") << "the user's notes\n";
-  const auto before = test::snapshot(dir);
   // An OBJ folder onto a user's folder, onto a regular file, onto the current folder; a GLB onto a folder.
-  test::expect_one_line_error(test::run_amt(dir, animate("mine")),
-                              {"mine: --out: expected no file there or an OBJ folder amt wrote (with .amt-output), "
-                               "found a folder amt did not write"});
-  test::expect_one_line_error(test::run_amt(dir, animate("notes.txt")), {"notes.txt: --out: ", "found a regular file"});
-  test::expect_one_line_error(test::run_amt(dir, animate(".")),
-                              {".: --out: expected a new folder for the OBJ files, found the name of the current folder"});
-  test::expect_one_line_error(test::run_amt(dir, animate("album.glb")),
-                              {"album.glb: output: expected a regular file or no file to replace, found a folder"});
-  test::expect_one_line_error(test::run_amt(dir, animate("")), {"--out: expected an output (or --html DIR), found none"});
-  EXPECT_EQ(test::snapshot(dir), before);
+  test::expect_errors_writing_nothing(
+      dir,
+      {{animate("mine"),
+        {"mine: --out: expected no file there or an OBJ folder amt wrote (with .amt-output), found a folder amt "
+         "did not write"}},
+       {animate("notes.txt"), {"notes.txt: --out: ", "found a regular file"}},
+       {animate("."), {".: --out: expected a new folder for the OBJ files, found the name of the current folder"}},
+       {animate("album.glb"), {"album.glb: output: expected a regular file or no file to replace, found a folder"}},
+       {animate(""), {"--out: expected an output (or --html DIR), found none"}}});
 }
 
 }  // namespace

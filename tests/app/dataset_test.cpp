@@ -21,18 +21,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Case {
-  std::vector<std::string> args;
-  std::vector<std::string> fragments;
-};
-
-void expect_errors(const fs::path& dir, const std::vector<Case>& cases, int status = 1) {
-  for (const Case& c : cases) {
-    SCOPED_TRACE(test::shell_command("amt", c.args));
-    test::expect_one_line_error(test::run_amt(dir, c.args), c.fragments, status);
-  }
-}
-
 TEST(DatasetBuildCommand, BuildsATinyDatasetThatInfoCheckAndPreviewRead) {
   const fs::path dir = test::temp_dir("dataset_build_tiny");
   const test::CommandResult built = test::expect_success(dir, test::tiny_build());
@@ -80,34 +68,33 @@ TEST(DatasetBuildCommand, BadSettingsAndOutputsAreRefusedAndLeaveTheFolderUntouc
   const fs::path dir = test::temp_dir("dataset_build_bad");
   test::users_folder(dir, "mine");
   std::ofstream(dir / "notes.txt") << "the user's notes\n";
-  const auto before = test::snapshot(dir);
   const auto build = [](const std::map<std::string, std::string>& changed) { return test::tiny_build(changed); };
-  expect_errors(dir, {{build({{"--shard", "2/1"}}), {"--shard: expected i/n", "found '2/1'"}},
-                      {build({{"--vertices", "10"}}), {"--vertices: expected 1000 to", "found 10"}},
-                      {build({{"--motions", "missing"}}), {"missing: --motions: no such folder"}},
-                      {build({{"--procedural", "0"}}), {"expected motions: a --motions folder or --procedural > 0"}},
-                      {build({{"--out", "notes.txt"}}), {"notes.txt: --out: expected a folder"}},
-                      {build({{"--out", "mine"}}),
-                       {"mine: --out: expected an empty folder or one amt dataset build wrote (manifest.json), found "
-                        "notes.txt without a manifest"}}});
-  EXPECT_EQ(test::snapshot(dir), before);
+  test::expect_errors_writing_nothing(
+      dir, {{build({{"--shard", "2/1"}}), {"--shard: expected i/n", "found '2/1'"}},
+            {build({{"--vertices", "10"}}), {"--vertices: expected 1000 to", "found 10"}},
+            {build({{"--motions", "missing"}}), {"missing: --motions: no such folder"}},
+            {build({{"--procedural", "0"}}), {"expected motions: a --motions folder or --procedural > 0"}},
+            {build({{"--out", "notes.txt"}}), {"notes.txt: --out: expected a folder"}},
+            {build({{"--out", "mine"}}),
+             {"mine: --out: expected an empty folder or one amt dataset build wrote (manifest.json), found "
+              "notes.txt without a manifest"}}});
 }
 
 TEST(DatasetCheckCommand, AMissingFolderAFileAndAFolderWithoutShardsAreOneLineErrors) {
   const fs::path dir = test::temp_dir("dataset_check_bad");
   test::users_folder(dir, "mine");
   std::ofstream(dir / "data.h5") << "a file, not a folder\n";
-  const auto before = test::snapshot(dir);
-  expect_errors(dir, {{{"dataset", "check", "missing"}, {"missing: no such folder"}},
-                      {{"dataset", "check", "data.h5"}, {"data.h5: expected a dataset folder", "found a regular file"}},
-                      {{"dataset", "check", "mine"}, {"mine: no shard (expected *.h5 files written by amt dataset build)"}}});
-  EXPECT_EQ(test::snapshot(dir), before);
+  test::expect_errors_writing_nothing(
+      dir, {{{"dataset", "check", "missing"}, {"missing: no such folder"}},
+            {{"dataset", "check", "data.h5"}, {"data.h5: expected a dataset folder", "found a regular file"}},
+            {{"dataset", "check", "mine"}, {"mine: no shard (expected *.h5 files written by amt dataset build)"}}});
 }
 
 TEST(DatasetInfoCommand, AFolderThatHoldsNoDatasetIsAOneLineError) {
   const fs::path dir = test::temp_dir("dataset_info_bad");
   test::users_folder(dir, "mine");
-  expect_errors(dir, {{{"dataset", "info", "mine"}, {"mine: no manifest.json and no *.h5 shard"}}});
+  test::expect_errors_writing_nothing(dir,
+                                      {{{"dataset", "info", "mine"}, {"mine: no manifest.json and no *.h5 shard"}}});
 }
 
 TEST(DatasetPreviewCommand, BadInputsAreOneLineErrorsAndAFolderIsNeverReplaced) {
@@ -116,19 +103,19 @@ TEST(DatasetPreviewCommand, BadInputsAreOneLineErrorsAndAFolderIsNeverReplaced) 
   std::ofstream(dir / "text.h5") << "not a dataset\n";
   fs::create_directories(dir / "folder.h5");
   test::users_folder(dir, "album.glb");
-  const auto before = test::snapshot(dir);
   const auto preview = [](const std::string& file, const std::string& out, const std::vector<std::string>& extra = {}) {
     std::vector<std::string> args = {"dataset", "preview", file, "--out", out, "--threads", "1"};
     args.insert(args.end(), extra.begin(), extra.end());
     return args;
   };
-  expect_errors(dir, {{preview("missing.h5", "p.glb"), {"missing.h5: no such file"}},
-                      {preview("folder.h5", "p.glb"), {"folder.h5: ", "found a folder"}},
-                      {preview("text.h5", "p.glb"), {"text.h5: expected an HDF5 file", "not HDF5"}},
-                      {preview(data, "p.glb", {"--clip", "dance"}), {"ex.h5: /clips/dance: missing"}},
-                      {preview(data, "p.glb", {"--first-frame", "50"}), {"ex.h5: /clips/capsules_walk: first frame"}},
-                      {preview(data, "album.glb"), {"album.glb: output: expected a regular file or no file to replace, found a folder"}}});
-  EXPECT_EQ(test::snapshot(dir), before);
+  test::expect_errors_writing_nothing(
+      dir, {{preview("missing.h5", "p.glb"), {"missing.h5: no such file"}},
+            {preview("folder.h5", "p.glb"), {"folder.h5: ", "found a folder"}},
+            {preview("text.h5", "p.glb"), {"text.h5: expected an HDF5 file", "not HDF5"}},
+            {preview(data, "p.glb", {"--clip", "dance"}), {"ex.h5: /clips/dance: missing"}},
+            {preview(data, "p.glb", {"--first-frame", "50"}), {"ex.h5: /clips/capsules_walk: first frame"}},
+            {preview(data, "album.glb"),
+             {"album.glb: output: expected a regular file or no file to replace, found a folder"}}});
 }
 
 }  // namespace

@@ -36,8 +36,8 @@ TEST(EvalCommand, ScoresAPredictionsFileAndTheShippedModelIntoAReportFolder) {
   fs::create_directories(dir / "report");  // an empty folder is taken
   // The ground truth as the predictions: zero on the held-out clip.
   const test::CommandResult truth =
-      test::expect_success(dir, {"eval", "--data", data, "--predictions", data + "/character-0000.h5", "--out", "report",
-                                 "--no-plots", "--no-penetration", "--quiet", "--threads", "1"});
+      test::expect_success(dir, {"eval", "--data", data, "--predictions", data + "/character-0000.h5", "--out",
+                                 "report", "--no-plots", "--no-penetration", "--quiet", "--threads", "1"});
   EXPECT_NE(truth.out.find("held-out clips, file, Predictions file: PMD 0 cm, PMD_a 0 cm, PMD_b 0 cm, ELS 1,"),
             std::string::npos)
       << truth.out;
@@ -73,29 +73,22 @@ TEST(EvalCommand, BadInputsAreOneLineErrorsAndWriteNoReport) {
   test::write_example_dataset(dir);  // one train character and clip: nothing held out
   std::ofstream(dir / "text.h5") << "not a dataset\n";
   fs::create_directories(dir / "empty");
-  const auto before = test::snapshot(dir);
   const auto eval = [](std::vector<std::string> args) {
     args.insert(args.begin(), "eval");
     args.insert(args.end(), {"--out", "report", "--no-plots", "--quiet", "--threads", "1"});
     return args;
   };
   const std::string model = test::shipped_model();
-  struct Case {
-    std::vector<std::string> args;
-    std::vector<std::string> fragments;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<test::ErrorCase> cases = {
       {eval({"--data", "missing.h5", "--model", model}), {"missing.h5: no such file or folder"}},
       {eval({"--data", "empty", "--model", model}), {"empty: no shards (expected *.h5 dataset files)"}},
-      {eval({"--data", "text.h5", "--model", model}), {"text.h5: expected an HDF5 file", "found a file that is not HDF5"}},
+      {eval({"--data", "text.h5", "--model", model}),
+       {"text.h5: expected an HDF5 file", "found a file that is not HDF5"}},
       {eval({"--data", "ex.h5", "--model", model}), {"ex.h5: no held-out clips"}},
       {eval({"--data", "ex.h5", "--predictions", "missing.h5"}), {"missing.h5: no such predictions file"}},
-      {eval({"--data", "ex.h5", "--model", model, "--methods", "magic"}), {"eval: method: expected one of", "found 'magic'"}}};
-  for (const Case& c : cases) {
-    SCOPED_TRACE(test::shell_command("amt", c.args));
-    test::expect_one_line_error(test::run_amt(dir, c.args), c.fragments);
-  }
-  EXPECT_EQ(test::snapshot(dir), before);
+      {eval({"--data", "ex.h5", "--model", model, "--methods", "magic"}),
+       {"eval: method: expected one of", "found 'magic'"}}};
+  test::expect_errors_writing_nothing(dir, cases);  // no output, no bind cache or report, no temporary
 }
 
 TEST(EvalCommand, RefusesAnOutputItDidNotWriteAndLeavesItUntouched) {
@@ -104,17 +97,15 @@ TEST(EvalCommand, RefusesAnOutputItDidNotWriteAndLeavesItUntouched) {
   test::users_folder(dir, "mine");
   std::ofstream(dir / "mine" / "report.md") << "# the user's report\n";
   std::ofstream(dir / "notes.txt") << "the user's notes\n";
-  const auto before = test::snapshot(dir);
   const auto eval = [&](const std::string& out) {
-    return std::vector<std::string>{"eval",  "--data", data,     "--predictions", data + "/character-0000.h5",
+    return std::vector<std::string>{"eval",  "--data", data,      "--predictions", data + "/character-0000.h5",
                                     "--out", out,      "--quiet", "--no-plots",    "--no-penetration"};
   };
-  test::expect_one_line_error(test::run_amt(dir, eval("mine")),
-                              {"mine: --out: expected an empty folder or a report folder amt eval wrote (metrics.json of "
-                               "format amt-eval), found other files"});
-  test::expect_one_line_error(test::run_amt(dir, eval("notes.txt")),
-                              {"notes.txt: --out: expected a folder for the report", "found a regular file"});
-  EXPECT_EQ(test::snapshot(dir), before);
+  test::expect_errors_writing_nothing(
+      dir, {{eval("mine"),
+             {"mine: --out: expected an empty folder or a report folder amt eval wrote (metrics.json of format "
+              "amt-eval), found other files"}},
+            {eval("notes.txt"), {"notes.txt: --out: expected a folder for the report", "found a regular file"}}});
 }
 
 }  // namespace

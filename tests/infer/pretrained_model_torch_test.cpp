@@ -59,21 +59,20 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   for (const auto& e : fs::directory_iterator(kPretrained)) {
     if (e.path().extension() == ".ckpt") shipped.insert(e.path().filename().string());
   }
-  const std::set<std::string> covered = {kSegmenterCheckpoint,          kSkinningCheckpoint,
-                                         kApparelCheckpoint,            kRefinerCheckpoint,
-                                         kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint};
+  const std::set<std::string> covered = {
+      kSegmenterCheckpoint, kSkinningCheckpoint,           kApparelCheckpoint,
+      kRefinerCheckpoint,   kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint};
   for (const std::string& name : shipped) {
     EXPECT_TRUE(covered.count(name)) << kPretrained.string() << "/" << name
                                      << ": a shipped checkpoint this test does not run: add it here";
   }
   const ModelBundle bundle = load_model_bundle(kPretrained.string());
-  const std::map<std::string, bool> loaded = {
-      {kSegmenterCheckpoint, !bundle.segmenter.is_empty()},
-      {kSkinningCheckpoint, !bundle.skinning.is_empty()},
-      {kApparelCheckpoint, bundle.apparel_module() != nullptr},
-      {kRefinerCheckpoint, !bundle.refiner.is_empty()},
-      {kSkinningNoGeodesicCheckpoint, !bundle.skinning_no_geodesic.is_empty()},
-      {kSkinningSortedCheckpoint, !bundle.skinning_sorted.is_empty()}};
+  const std::map<std::string, bool> loaded = {{kSegmenterCheckpoint, !bundle.segmenter.is_empty()},
+                                              {kSkinningCheckpoint, !bundle.skinning.is_empty()},
+                                              {kApparelCheckpoint, bundle.apparel_module() != nullptr},
+                                              {kRefinerCheckpoint, !bundle.refiner.is_empty()},
+                                              {kSkinningNoGeodesicCheckpoint, !bundle.skinning_no_geodesic.is_empty()},
+                                              {kSkinningSortedCheckpoint, !bundle.skinning_sorted.is_empty()}};
   for (const std::string& name : shipped) {
     if (loaded.count(name)) {
       EXPECT_TRUE(loaded.at(name)) << name << " is in the folder but was not loaded";
