@@ -33,6 +33,7 @@
 #include "infer/glb_stream_writer.h"
 #include "infer/runtime_torch.h"
 #include "models/joint_refiner.h"
+#include "models/skinning_overfit.h"
 #include "data_tools/geodesic.h"
 #include "data_tools/lbs.h"
 #include "data_tools/procedural_motion.h"
@@ -122,6 +123,18 @@ void bench_geodesic(const BenchOptions& o) {
   AMT_CHECK(G.allFinite(), "bench: geodesic: expected finite distances");
   std::printf("geodesic  %6d vertices, %d joints, 22 parts: median %.1f ms per matrix (%d runs)\n",
               mesh.num_vertices(), s.num_joints(), 1e3 * seconds, repeats);
+}
+
+// Training speed of the skinning predictor: the fixed overfit run of models/skinning_overfit.h (a 22-vertex
+// bar, 500 AdamW steps through LBS, 1 thread), whose loss its unit test checks.
+void bench_skinning(const BenchOptions& o) {
+  set_thread_count(1);
+  SkinningOverfit run;
+  const int repeats = std::max(1, o.repeats / 10);
+  const double seconds = median_seconds(repeats, [&] { run = overfit_skinning_on_a_bar(500); });
+  std::printf("skinning  overfit of f_s on a 22-vertex bar through LBS, %d AdamW steps, 1 thread: median %.2f s "
+              "(%.2f ms per step, %d runs), L1 %.5f -> %.5f\n",
+              run.steps, seconds, 1e3 * seconds / run.steps, repeats, run.initial_loss, run.final_loss);
 }
 
 
@@ -293,8 +306,8 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(100, 5000000))
       ->capture_default_str();
   bench->add_option("--repeats", options->repeats, "Timed repeats per figure")->check(CLI::Range(1, 100000))->capture_default_str();
-  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting)")
-      ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth"}))
+  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting), skinning (training steps)")
+      ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth", "skinning"}))
       ->capture_default_str();
   bench->add_option("--runtime-sizes", options->runtime_sizes, "Vertex counts of the runtime suite's characters")
       ->check(CLI::Range(2000, 200000))
@@ -313,6 +326,7 @@ void add_bench_command(CLI::App& app) {
       if (suite == "geodesic") bench_geodesic(*options);
       if (suite == "runtime") bench_runtime(*options);
       if (suite == "cloth") bench_cloth(*options);
+      if (suite == "skinning") bench_skinning(*options);
     }
     std::printf("peak resident memory: %.0f MB\n", peak_resident_mb());
   });

@@ -6,6 +6,7 @@
 
 #include "app/commands.h"
 #include "app/repository.h"
+#include "data_tools/atomic_file.h"
 #include "data_tools/dataset_builder.h"
 #include "data_tools/dataset_info.h"
 #include "data_tools/dataset_preview.h"
@@ -171,8 +172,11 @@ void add_check_command(CLI::App& dataset) {
   add_threads_option(*check);
   check->callback([dir, options] {
     std::error_code error;
-    AMT_CHECK(std::filesystem::is_directory(*dir, error), *dir,
+    const std::filesystem::file_status status = std::filesystem::status(*dir, error);
+    AMT_CHECK(std::filesystem::exists(status), *dir,
               ": no such folder (expected a dataset folder written by amt dataset build)");
+    AMT_CHECK(std::filesystem::is_directory(status), *dir,
+              ": expected a dataset folder written by amt dataset build, found ", describe_file_type(status.type()));
     QualityOptions run = *options;
     if (run.report_dir.empty()) run.report_dir = (std::filesystem::path(*dir) / "quality").string();
     run.progress = &std::cerr;

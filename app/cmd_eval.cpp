@@ -49,7 +49,8 @@ void print_summary(const EvaluationResult& result, const ReportFiles& files) {
 }
 
 void run(const EvalCommand& command) {
-  // The viewer folder is checked before the evaluation, which can take hours.
+  // The output and viewer folders are checked before the evaluation, which can take hours.
+  check_report_folder(command.out);
   std::string viewer_dir;
   if (!command.viewer.empty()) {
     AMT_CHECK(command.predictions.empty(), "--viewer: expected a model to run on the picked clips, found --predictions");

@@ -6,11 +6,14 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "amt/version.h"
 #include "app/commands.h"
@@ -95,6 +98,31 @@ void remove_temporaries_on_termination_signals() {
   sigaction(SIGTERM, &forward, nullptr);
 }
 
+// The deepest subcommand the command line reached (the program itself when none).
+const CLI::App* deepest_command(const CLI::App& app) {
+  const CLI::App* at = &app;
+  for (auto parsed = at->get_subcommands(); !parsed.empty(); parsed = at->get_subcommands()) at = parsed.front();
+  return at;
+}
+
+// The one-line message of a command-line error, with the help that lists the options ("amt dataset build
+// --help"). An unknown command is named with the known ones (CLI11 only says that one is required).
+std::string usage_error(const CLI::App& app, const CLI::ParseError& e) {
+  const CLI::App* at = deepest_command(app);
+  std::string command = "amt";
+  for (const CLI::App* p = at; p != &app && p != nullptr; p = p->get_parent()) command.insert(3, " " + p->get_name());
+  std::string message = e.what();
+  const std::vector<std::string> rest = at->remaining();
+  if (at->get_require_subcommand_min() > 0 && at->get_subcommands().empty() && !rest.empty()) {
+    message = "expected a command (";
+    const auto known = at->get_subcommands([](const CLI::App*) { return true; });
+    for (size_t k = 0; k < known.size(); ++k) message += (k > 0 ? ", " : "") + known[k]->get_name();
+    message += "), found '" + rest.front() + "'";
+  }
+  std::replace(message.begin(), message.end(), '\n', ' ');
+  return message + " (" + command + " --help lists the options)";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -113,7 +141,11 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version print what they asked for; a command-line error (an unknown option or
+    // subcommand, a missing or invalid value) is one line like amt's other errors, with status 2.
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::cerr << "amt: error: " << usage_error(app, e) << "\n";
+    return 2;
   } catch (const amt::Error& e) {
     std::cerr << "amt: error: " << e.what() << "\n";
     return 1;

@@ -199,10 +199,30 @@ json read_manifest_file(const std::string& path) {
   return manifest;
 }
 
-// Writes DIR/manifest.json, or checks that the one there describes the same dataset.
+// The first entry of `dir` that is neither manifest.json nor another shard process's temporary of it
+// (manifest.json.PID.tmp), "" when there is none.
+std::string foreign_entry(const std::string& dir) {
+  std::error_code error;
+  for (fs::directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    const bool manifest_temporary = name.rfind("manifest.json.", 0) == 0 && name.size() > 18 &&
+                                    name.compare(name.size() - 4, 4, ".tmp") == 0;
+    if (name != "manifest.json" && !manifest_temporary) return name;
+  }
+  return "";
+}
+
+// Writes DIR/manifest.json, or checks that the one there describes the same dataset. A folder without a
+// manifest must be empty: a user's folder is refused, never filled (a shard process that started at the
+// same time writes the manifest before anything else, so its files come with a manifest).
 void check_or_write_manifest(const std::string& dir, const json& manifest) {
   const std::string path = manifest_path(dir);
   std::error_code error;
+  if (!fs::exists(path, error)) {
+    const std::string foreign = foreign_entry(dir);
+    AMT_CHECK(foreign.empty() || fs::exists(path, error), dir, ": --out: expected an empty folder or one amt dataset ",
+              "build wrote (manifest.json), found ", foreign, " without a manifest: name a new folder");
+  }
   if (fs::exists(path, error)) {
     const json existing = read_manifest_file(path);
     // Settings first: they explain the other differences (seeds, clip lists).

@@ -10,6 +10,7 @@
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "data_tools/error.h"
 
@@ -56,6 +57,18 @@ struct CommandResult {
   int status = -1;
   std::string out, err;
 };
+
+/// `program` and `args` as one sh command line, each word single-quoted.
+inline std::string shell_command(const std::string& program, const std::vector<std::string>& args) {
+  const auto quote = [](const std::string& word) {
+    std::string quoted = "'";
+    for (char c : word) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return quoted + "'";
+  };
+  std::string command = quote(program);
+  for (const std::string& a : args) command += " " + quote(a);
+  return command;
+}
 
 /// Runs `command` with sh as a user runs it, capturing stdout and stderr.
 inline CommandResult run_command(const std::string& command) {

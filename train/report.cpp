@@ -14,6 +14,8 @@
 #include <iomanip>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "data_tools/atomic_file.h"
 #include "data_tools/temporary_registry.h"
 #include "data_tools/error.h"
@@ -497,19 +499,44 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
   return md.str();
 }
 
+void check_report_folder(const std::string& dir) {
+  AMT_CHECK(!dir.empty(), "eval: --out: expected an output folder, found nothing");
+  std::error_code error;
+  const fs::file_status status = fs::symlink_status(dir, error);
+  if (!fs::exists(status)) return;
+  AMT_CHECK(fs::is_directory(status), dir, ": --out: expected a folder for the report (absent, empty, or written by amt ",
+            "eval), found ", describe_file_type(status.type()));
+  if (fs::is_empty(dir, error) && !error) return;
+  const fs::path metrics = fs::path(dir) / "metrics.json";
+  std::string format;
+  if (fs::is_regular_file(fs::symlink_status(metrics, error))) {
+    std::ifstream in(metrics);
+    try {
+      const nlohmann::json j = nlohmann::json::parse(in);
+      if (j.is_object()) format = j.value("format", "");
+    } catch (const nlohmann::json::exception&) {
+      format.clear();
+    }
+  }
+  AMT_CHECK(format == "amt-eval", dir, ": --out: expected an empty folder or a report folder amt eval wrote ",
+            "(metrics.json of format amt-eval), found other files: name a new folder");
+}
+
 ReportFiles write_report(const EvaluationResult& result, const ReportOptions& options) {
-  AMT_CHECK(!options.out_dir.empty(), "eval: --out: expected an output folder, found nothing");
+  check_report_folder(options.out_dir);
   std::error_code error;
   fs::create_directories(options.out_dir, error);
   AMT_CHECK(fs::is_directory(options.out_dir, error), options.out_dir,
             ": cannot create the output folder (", error.message(), ")");
   ReportFiles files;
+  // metrics.json first: it marks the folder as amt's, so a run interrupted while drawing the plots is
+  // replaced by the next run instead of refused.
+  files.json = (fs::path(options.out_dir) / "metrics.json").string();
+  write_file_atomically(files.json, evaluation_json(result));
   if (options.plots) {
     plot_loss_curves(options, files);
     plot_rollout(result, options, files);
   }
-  files.json = (fs::path(options.out_dir) / "metrics.json").string();
-  write_file_atomically(files.json, evaluation_json(result));
   files.markdown = (fs::path(options.out_dir) / "report.md").string();
   write_file_atomically(files.markdown, report_markdown(result, options, files.plots, files.notes));
   return files;

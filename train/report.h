@@ -61,8 +61,14 @@ struct ReportFiles {
 std::string report_markdown(const EvaluationResult& result, const ReportOptions& options,
                             const std::vector<std::string>& plots, const std::vector<std::string>& plot_notes);
 
-/// Writes <out>/report.md, <out>/metrics.json and the plots. Throws amt::Error when the folder or a
-/// file cannot be written; a failing gnuplot only drops its plot (noted in the report).
+/// Checks, before any work, that `dir` may become a report folder: it does not exist, is empty, or holds
+/// a metrics.json of format "amt-eval" (a folder amt eval wrote before, whose report files are replaced).
+/// Anything else (a file, a folder of the user's) is refused with amt::Error naming it. Creates nothing.
+void check_report_folder(const std::string& dir);
+
+/// Writes <out>/metrics.json (first: it marks the folder as amt's), the plots and <out>/report.md after
+/// check_report_folder. Throws amt::Error when the folder is refused or a file cannot be written; a
+/// failing gnuplot only drops its plot (noted in the report).
 ReportFiles write_report(const EvaluationResult& result, const ReportOptions& options);
 
 }  // namespace amt

@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <vector>
 
+#include "data_tools/mesh.h"
 #include "data_tools/shapes.h"
 #include "data_tools/winding_number.h"
 
@@ -81,12 +83,26 @@ TEST(PenetrationResolver, SmoothingMovesTheFirstRingByHalfThePush) {
   const PenetrationReport report = resolver.resolve(V);
   EXPECT_EQ(report.after.inside, 0);
   // Sheet vertex (i, j) = (15, 10) is outside (5^2 + 0^2 = 25 > 22); its inside neighbours are (14, 10)
-  // and (14, 9) (16 and 17 <= 22), so it moves by half the mean of their pushes: less than they do.
+  // and (14, 9) (16 and 17 <= 22), so it moves by half (the falloff) the mean of their pushes. A pushed
+  // vertex moves by its push alone, so the pushes are the inside neighbours' displacements.
   const int ring = c.body_vertices + 10 * 21 + 15, inner = c.body_vertices + 10 * 21 + 14;
-  const float moved_ring = (V.row(ring) - c.mesh.V.row(ring)).norm();
-  const float moved_inner = (V.row(inner) - c.mesh.V.row(inner)).norm();
-  EXPECT_GT(moved_ring, 0.0f);
-  EXPECT_LT(moved_ring, moved_inner);
+  const int inner_below = c.body_vertices + 9 * 21 + 14;
+  std::vector<int> inside_neighbors;
+  const MatrixX2i E = unique_edges(c.mesh.F);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    for (int side = 0; side < 2; ++side) {
+      const int q = E(e, 1 - side);
+      if (E(e, side) == ring && c.mesh.V.row(q).norm() < 0.3f) inside_neighbors.push_back(q);
+    }
+  }
+  std::sort(inside_neighbors.begin(), inside_neighbors.end());
+  ASSERT_EQ(inside_neighbors, (std::vector<int>{inner_below, inner}));
+  const Eigen::RowVector3f push_inner = V.row(inner) - c.mesh.V.row(inner);
+  const Eigen::RowVector3f push_below = V.row(inner_below) - c.mesh.V.row(inner_below);
+  const Eigen::RowVector3f moved = V.row(ring) - c.mesh.V.row(ring);
+  const Eigen::RowVector3f half_mean = 0.5f * (push_inner + push_below) / 2.0f;
+  EXPECT_GT(half_mean.norm(), 0.01f);  // the pushes are centimetres: "half" is measurable
+  EXPECT_LT((moved - half_mean).norm(), 1e-6f) << "moved " << moved << ", half the mean push " << half_mean;
   // Ring 2 does not move with one ring of smoothing.
   const int far = c.body_vertices + 10 * 21 + 16;
   EXPECT_EQ(V.row(far), c.mesh.V.row(far));

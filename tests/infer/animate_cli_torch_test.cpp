@@ -48,9 +48,7 @@ std::vector<std::string> animate_args(const test::RuntimeFixture& f, const std::
 }
 
 std::string shell_command(const std::vector<std::string>& args) {
-  std::string command = std::string("'") + AMT_BINARY + "'";
-  for (const std::string& a : args) command += " '" + a + "'";
-  return command;
+  return test::shell_command(AMT_BINARY, args);
 }
 
 // Starts the amt program with `args`, its stdout and stderr going to `log`.

@@ -1,5 +1,5 @@
 // The runtime end to end on tiny inputs: bind cache hit and invalidation, frame count and fps of the
-// output, equality with the pipeline's forward pass (the trainer's and evaluation's path), and the
+// output, equality with the pipeline's forward pass (composed independently of the stepper), and the
 // bad inputs of issue 6 (clear one-line errors, nothing written).
 #include "infer/runtime_torch.h"
 
@@ -7,11 +7,14 @@
 #include <torch/utils.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
 #include "data_tools/dataset_file.h"
 #include "data_tools/gltf_import.h"
+#include "data_tools/lbs.h"
+#include "data_tools/motion.h"
 #include "data_tools/obj_io.h"
 #include "data_tools/shapes.h"
 #include "tests/infer/runtime_fixture.h"
@@ -166,6 +169,27 @@ TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {
   EXPECT_EQ(files_in(f.dir / "out"), (std::vector<fs::path>{"walk.bind", "walk.glb"}));
 }
 
+// (rows, cols) float tensor -> row-major Eigen matrix.
+MatrixXfR to_eigen(const at::Tensor& X) {
+  const at::Tensor x = X.to(at::kFloat).contiguous();
+  MatrixXfR out(x.size(0), x.size(1));
+  std::memcpy(out.data(), x.data_ptr<float>(), size_t(out.size()) * sizeof(float));
+  return out;
+}
+
+// Rows `ids` (int64 tensor) of V.
+MatrixX3f rows_of(const MatrixX3f& V, const at::Tensor& ids) {
+  MatrixX3f out(ids.size(0), 3);
+  for (int64_t k = 0; k < ids.size(0); ++k) out.row(k) = V.row(ids[k].item<int64_t>());
+  return out;
+}
+
+// The runtime's dataset output against the paper's forward pass composed here from its parts, without
+// the PipelineStepper the runtime runs (and run_pipeline wraps): per frame, B̂ and the apparel anchor S
+// by the CPU skinning of data_tools/lbs.h (eq. 4), Â by the apparel module's own rollout from the rest
+// history (eq. 11, the trainer's path), tiled by the mask in mesh order and refined by the refiner's
+// unprepared forward over all frames at once (eq. 16). Only the bind (weights, mask, apparel graph) is
+// shared.
 TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   const Fixture f = make_fixture("animate_equal");
   AnimateOptions o = options_for(f, (f.dir / "pred.h5").string());
@@ -174,24 +198,53 @@ TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   o.bind_path = "none";
   const AnimateSummary s = animate(o);
   ASSERT_EQ(s.frames, 30);
-  // The same model, character and clip through run_pipeline from the rest history.
   const ModelBundle bundle = load_model_bundle(f.model);
+  ASSERT_FALSE(bundle.local_apparel());  // the fixture's model: the global form, anchored on the skinned body
+  ASSERT_TRUE(bundle.apparel->options.skinned_anchor);
   DatasetReader truth(f.data);
   const CharacterData c = truth.read_character("capsules");
   const BindResult bind = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "");
+  const BoundCharacter& b = bind.bound;
+  const int64_t N = b.num_vertices(), Na = b.num_apparel(), Nb = b.num_body(), J = 22;
+  ASSERT_GT(Na, 0);
+  ASSERT_GT(Nb, 0);
   const Transforms T = truth.read_joint_transforms("walk0", 0, 30);
-  at::Tensor transforms = at::empty({30, 22, 3, 4});
-  for (int k = 0; k < 30 * 22; ++k) {
-    std::memcpy(transforms.data_ptr<float>() + 12 * k, T[size_t(k)].data(), 12 * sizeof(float));
+  const MatrixX3f body_rest = rows_of(c.mesh.V, b.body_ids), apparel_rest = rows_of(c.mesh.V, b.apparel_ids);
+  const MatrixXfR body_weights = to_eigen(b.body_weights), anchor_weights = to_eigen(b.apparel_anchor_weights);
+  at::Tensor transforms = at::empty({30, J, 3, 4}), body = at::empty({30, Nb, 3}), anchors = at::empty({30, Na, 3});
+  for (int t = 0; t < 30; ++t) {
+    const Transforms frame(T.begin() + J * t, T.begin() + J * (t + 1));
+    for (int j = 0; j < J; ++j) std::memcpy(transforms[t][j].data_ptr<float>(), frame[size_t(j)].data(), 12 * sizeof(float));
+    const Transforms M = skinning_matrices(c.skeleton, frame);
+    MatrixX3f B, S;
+    linear_blend_skinning(body_rest, body_weights, M, B);
+    linear_blend_skinning(apparel_rest, anchor_weights, M, S);
+    std::memcpy(body[t].data_ptr<float>(), B.data(), size_t(B.size()) * sizeof(float));
+    std::memcpy(anchors[t].data_ptr<float>(), S.data(), size_t(S.size()) * sizeof(float));
   }
-  const at::Tensor expected = run_pipeline(bundle, bind.bound, rest_apparel_history(bind.bound), transforms);
+  torch::NoGradGuard no_grad;
+  const at::Tensor A_rest = at::from_blob(const_cast<float*>(apparel_rest.data()), {Na, 3}, at::kFloat).clone();
+  const at::Tensor A = bundle.apparel.ptr()->rollout(A_rest.unsqueeze(0).repeat({3, 1, 1}), transforms, b.apparel_neighbors,
+                                               anchors);  // (30, N_a, 3)
+  at::Tensor tiled = at::empty({30, N, 3});
+  const std::vector<uint8_t>& mask = c.apparel_mask;
+  int64_t next_apparel = 0, next_body = 0;
+  for (int64_t i = 0; i < N; ++i) {
+    tiled.select(1, i).copy_(mask[size_t(i)] ? A.select(1, next_apparel++) : body.select(1, next_body++));
+  }
+  ASSERT_EQ(next_apparel, Na);
+  const at::Tensor expected = bundle.refiner.ptr()->forward(tiled, b.V, b.refiner_prob).V_hat;
+
   DatasetReader predicted(o.out);
   EXPECT_EQ(predicted.clip_names(), std::vector<std::string>{"walk0"});
   EXPECT_EQ(predicted.character_names(), std::vector<std::string>{"capsules"});
   EXPECT_EQ(predicted.read_character("capsules").apparel_mask, c.apparel_mask);
   const MatrixX3f V = predicted.read_vertices("walk0", 0, 30);
   const at::Tensor got = at::from_blob(const_cast<float*>(V.data()), {30, V.rows() / 30, 3}, at::kFloat);
-  EXPECT_LT((got - expected).abs().max().item<float>(), 1e-6f);
+  EXPECT_LT((got - expected).abs().max().item<float>(), 1e-5f);
+  // Evaluation's path (run_pipeline) gives the runtime's frames too.
+  const at::Tensor pipeline = run_pipeline(bundle, b, rest_apparel_history(b), transforms);
+  EXPECT_LT((got - pipeline).abs().max().item<float>(), 1e-6f);
   // Apparel really moved away from rigid skinning (the model ran): the refiner and apparel step act.
   EXPECT_GT((got[29] - got[0]).abs().max().item<float>(), 0.01f);
   EXPECT_EQ(files_in(f.dir), (std::vector<fs::path>{"mask.txt", "micro.h5", "model", "pred.h5"}));

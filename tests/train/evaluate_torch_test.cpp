@@ -38,9 +38,10 @@ std::string write_fresh_bundle(const std::string& name) {
 // A dataset whose ground truth IS LBS with the ground-truth weights (apparel included): one test
 // character with one walk (or `test_characters` of them with `test_clips` walks each, named
 // capsules_test, capsules_test1, ...), one train character with a train walk and a test walk.
-// `shift` (metres, along x) moves every vertex of every frame: a prediction off by a known amount.
+// `shift` (metres, along x) moves every vertex of every frame (with `apparel_only`, the apparel vertices
+// alone): a prediction off by a known amount.
 void write_lbs_dataset(const std::string& path, int frames, int test_characters = 1, int test_clips = 1,
-                       float shift = 0.0f) {
+                       float shift = 0.0f, bool apparel_only = false) {
   const Skeleton skeleton = canonical_skeleton();
   DatasetWriter writer(path, 30.0f, skeleton.names);
   std::vector<std::pair<std::string, std::string>> characters;  // (name, split)
@@ -67,7 +68,9 @@ void write_lbs_dataset(const std::string& path, int frames, int test_characters 
         const Transforms joints = forward_kinematics(skeleton, walk, t);
         MatrixX3f posed;
         linear_blend_skinning(character.mesh.V, weights, skinning_matrices(skeleton, joints), posed);
-        posed.col(0).array() += shift;
+        for (int i = 0; i < posed.rows(); ++i) {
+          if (!apparel_only || character.apparel_mask[size_t(i)]) posed(i, 0) += shift;
+        }
         writer.append_frame(joints, posed);
       }
       writer.end_clip();
@@ -244,6 +247,23 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
   EXPECT_EQ(row->scores.frames, 12);
   EXPECT_DOUBLE_EQ(row->scores.pmd, 0.0);
   EXPECT_DOUBLE_EQ(row->scores.els, 1.0);
+  // The zero comes from the predictions: the same file with its apparel vertices 1 cm off (the body
+  // exact) scores PMD_a 1 cm, PMD_b 0 and PMD 1 cm times the apparel share, on both subsets.
+  write_lbs_dataset(dir + "/apparel_shifted.h5", 12, 1, 1, 0.01f, /*apparel_only=*/true);
+  const CharacterData c = DatasetReader(dir + "/lbs.h5").read_character("capsules_test");
+  const double apparel_share =
+      double(std::count(c.apparel_mask.begin(), c.apparel_mask.end(), uint8_t(1))) / double(c.apparel_mask.size());
+  ASSERT_GT(apparel_share, 0.05);
+  ASSERT_LT(apparel_share, 0.95);
+  const EvaluationResult shifted = evaluate_predictions({dir + "/lbs.h5"}, dir + "/apparel_shifted.h5", options);
+  for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
+    const MethodScores* r = shifted.find("predictions", "file", subset);
+    ASSERT_NE(r, nullptr) << subset;
+    EXPECT_EQ(r->scores.frames, 12) << subset;
+    EXPECT_NEAR(r->scores.pmd_a, 1.0, 1e-4) << subset;
+    EXPECT_NEAR(r->scores.pmd_b, 0.0, 1e-9) << subset;
+    EXPECT_NEAR(r->scores.pmd, apparel_share, 1e-4) << subset;
+  }
   EXPECT_NE(test::error_of([&] { evaluate_predictions({dir + "/lbs.h5"}, dir + "/none.h5", options); })
                 .find("none.h5: no such predictions file"),
             std::string::npos);

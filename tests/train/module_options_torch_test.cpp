@@ -1,7 +1,13 @@
-// Network options as JSON (train/module_options.h): every field round-trips, bad fields are named.
+// Network options as JSON (train/module_options.h): every field is written and read as hand-written JSON
+// says, bad fields are named.
 #include "train/module_options.h"
 
 #include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <vector>
 
 #include "data_tools/error.h"
 #include "tests/test_support.h"
@@ -9,36 +15,100 @@
 namespace amt {
 namespace {
 
+// Each options struct with every field set away from its default, against values written out by hand
+// here (not against the module's own output): options_to_json writes exactly the hand-written JSON and
+// options_from_json reads it back into exactly the hand-set fields. A field that both directions
+// dropped or renamed fails here.
+using Json = nlohmann::json;
+
+// options_to_json(options) is the JSON object `expected` (key order and number spelling aside).
+template <typename Options>
+void expect_written_as(const Options& options, const char* expected) {
+  EXPECT_EQ(Json::parse(options_to_json(options)), Json::parse(expected)) << options_to_json(options);
+}
+
 TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   SkinningPredictorOptions s;
   s.num_joints = 7;
   s.feature_widths = {3, 5};
+  s.attention_widths = {2};
+  s.attention_row_context = false;
+  s.head_encoder_widths = {6, 8};
+  s.head_decoder_widths = {9};
   s.variant = SkinningVariant::kSortByGeodesic;
+  s.sort_k = 2;
   s.negative_slope = 0.1234567890123;
   s.normalize_input = false;
+  const char* skinning_json = R"({"num_joints": 7, "feature_widths": [3, 5], "attention_widths": [2],
+      "attention_row_context": false, "head_encoder_widths": [6, 8], "head_decoder_widths": [9],
+      "variant": "sort_by_geodesic", "sort_k": 2, "negative_slope": 0.1234567890123, "normalize_input": false})";
+  expect_written_as(s, skinning_json);
   SkinningPredictorOptions s2;
-  options_from_json(options_to_json(s), "x.ckpt", s2);
-  EXPECT_EQ(options_to_json(s2), options_to_json(s));
+  options_from_json(skinning_json, "x.ckpt", s2);
+  EXPECT_EQ(s2.num_joints, 7);
+  EXPECT_EQ(s2.feature_widths, (std::vector<int64_t>{3, 5}));
+  EXPECT_EQ(s2.attention_widths, (std::vector<int64_t>{2}));
+  EXPECT_FALSE(s2.attention_row_context);
+  EXPECT_EQ(s2.head_encoder_widths, (std::vector<int64_t>{6, 8}));
+  EXPECT_EQ(s2.head_decoder_widths, (std::vector<int64_t>{9}));
   EXPECT_EQ(s2.variant, SkinningVariant::kSortByGeodesic);
-  EXPECT_EQ(s2.negative_slope, s.negative_slope);
+  EXPECT_EQ(s2.sort_k, 2);
+  EXPECT_EQ(s2.negative_slope, 0.1234567890123);
+  EXPECT_FALSE(s2.normalize_input);
 
   ApparelDisplacementOptions a;
+  a.num_joints = 5;
+  a.motion_widths = {7};
+  a.motion_code = 3;
   a.edge_widths = {4};
-  a.velocity_scale = 3.5;
+  a.decoder_widths = {6, 2};
+  a.negative_slope = 0.5;
   a.root_relative = false;
+  a.velocity_scale = 3.5;
+  a.output_scale = 0.25;
+  a.naive_edge_conv = true;
+  a.skinned_anchor = false;
+  a.zero_init = false;
+  const char* displacement_json = R"({"num_joints": 5, "motion_widths": [7], "motion_code": 3, "edge_widths": [4],
+      "decoder_widths": [6, 2], "negative_slope": 0.5, "root_relative": false, "velocity_scale": 3.5,
+      "output_scale": 0.25, "naive_edge_conv": true, "skinned_anchor": false, "zero_init": false})";
+  expect_written_as(a, displacement_json);
   ApparelDisplacementOptions a2;
-  options_from_json(options_to_json(a), "x.ckpt", a2);
-  EXPECT_EQ(a2.edge_widths, a.edge_widths);
-  EXPECT_EQ(a2.velocity_scale, 3.5);
+  options_from_json(displacement_json, "x.ckpt", a2);
+  EXPECT_EQ(a2.num_joints, 5);
+  EXPECT_EQ(a2.motion_widths, (std::vector<int64_t>{7}));
+  EXPECT_EQ(a2.motion_code, 3);
+  EXPECT_EQ(a2.edge_widths, (std::vector<int64_t>{4}));
+  EXPECT_EQ(a2.decoder_widths, (std::vector<int64_t>{6, 2}));
+  EXPECT_EQ(a2.negative_slope, 0.5);
   EXPECT_FALSE(a2.root_relative);
+  EXPECT_EQ(a2.velocity_scale, 3.5);
+  EXPECT_EQ(a2.output_scale, 0.25);
+  EXPECT_TRUE(a2.naive_edge_conv);
+  EXPECT_FALSE(a2.skinned_anchor);
+  EXPECT_FALSE(a2.zero_init);
 
-  ApparelDynamicsOptions l;
+  ApparelDynamicsOptions l;  // `form` has one valid value, "local" (its default)
+  l.num_joints = 9;
+  l.anchor = "nearest";
   l.edge_widths = {5, 6};
+  l.decoder_widths = {3};
+  l.negative_slope = 0.125;
   l.inertia = 0.25;
+  l.naive_edge_conv = true;
+  const char* dynamics_json = R"({"form": "local", "num_joints": 9, "anchor": "nearest", "edge_widths": [5, 6],
+      "decoder_widths": [3], "negative_slope": 0.125, "inertia": 0.25, "naive_edge_conv": true})";
+  expect_written_as(l, dynamics_json);
   ApparelDynamicsOptions l2;
-  options_from_json(options_to_json(l), "x.ckpt", l2);
-  EXPECT_EQ(options_to_json(l2), options_to_json(l));
+  options_from_json(dynamics_json, "x.ckpt", l2);
+  EXPECT_EQ(l2.form, "local");
+  EXPECT_EQ(l2.num_joints, 9);
+  EXPECT_EQ(l2.anchor, "nearest");
+  EXPECT_EQ(l2.edge_widths, (std::vector<int64_t>{5, 6}));
+  EXPECT_EQ(l2.decoder_widths, (std::vector<int64_t>{3}));
+  EXPECT_EQ(l2.negative_slope, 0.125);
   EXPECT_EQ(l2.inertia, 0.25);
+  EXPECT_TRUE(l2.naive_edge_conv);
   // The two apparel forms are told apart by `form`, which only the local one writes.
   EXPECT_TRUE(is_local_apparel_options(options_to_json(l)));
   EXPECT_FALSE(is_local_apparel_options(options_to_json(a)));
@@ -52,16 +122,30 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
 
   JointRefinerOptions r;
   r.hidden_widths = {9};
+  r.output_scale = 0.03125;
   r.zero_init = false;
+  const char* refiner_json = R"({"hidden_widths": [9], "output_scale": 0.03125, "zero_init": false})";
+  expect_written_as(r, refiner_json);
   JointRefinerOptions r2;
-  options_from_json(options_to_json(r), "x.ckpt", r2);
-  EXPECT_EQ(options_to_json(r2), options_to_json(r));
+  options_from_json(refiner_json, "x.ckpt", r2);
+  EXPECT_EQ(r2.hidden_widths, (std::vector<int64_t>{9}));
+  EXPECT_EQ(r2.output_scale, 0.03125);
+  EXPECT_FALSE(r2.zero_init);
 
   ApparelSegmenterOptions g;
   g.encoder_widths = {1, 2, 3};
+  g.decoder_widths = {4};
+  g.negative_slope = 0.0;
+  g.normalize_input = false;
+  const char* segmenter_json =
+      R"({"encoder_widths": [1, 2, 3], "decoder_widths": [4], "negative_slope": 0.0, "normalize_input": false})";
+  expect_written_as(g, segmenter_json);
   ApparelSegmenterOptions g2;
-  options_from_json(options_to_json(g), "x.ckpt", g2);
-  EXPECT_EQ(g2.encoder_widths, g.encoder_widths);
+  options_from_json(segmenter_json, "x.ckpt", g2);
+  EXPECT_EQ(g2.encoder_widths, (std::vector<int64_t>{1, 2, 3}));
+  EXPECT_EQ(g2.decoder_widths, (std::vector<int64_t>{4}));
+  EXPECT_EQ(g2.negative_slope, 0.0);
+  EXPECT_FALSE(g2.normalize_input);
 }
 
 TEST(ModuleOptions, ApparelAnchorOfOldCheckpointsIsTheNearestBodyVertex) {
