@@ -96,8 +96,11 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   l.negative_slope = 0.125;
   l.inertia = 0.25;
   l.naive_edge_conv = true;
+  l.contact = false;
+  l.reach_levels = 3;
   const char* dynamics_json = R"({"form": "local", "num_joints": 9, "anchor": "nearest", "edge_widths": [5, 6],
-      "decoder_widths": [3], "negative_slope": 0.125, "inertia": 0.25, "naive_edge_conv": true})";
+      "decoder_widths": [3], "negative_slope": 0.125, "inertia": 0.25, "naive_edge_conv": true,
+      "contact": false, "reach_levels": 3})";
   expect_written_as(l, dynamics_json);
   ApparelDynamicsOptions l2;
   options_from_json(dynamics_json, "x.ckpt", l2);
@@ -109,6 +112,8 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(l2.negative_slope, 0.125);
   EXPECT_EQ(l2.inertia, 0.25);
   EXPECT_TRUE(l2.naive_edge_conv);
+  EXPECT_FALSE(l2.contact);
+  EXPECT_EQ(l2.reach_levels, 3);
   // The two apparel forms are told apart by `form`, which only the local one writes.
   EXPECT_TRUE(is_local_apparel_options(options_to_json(l)));
   EXPECT_FALSE(is_local_apparel_options(options_to_json(a)));
