@@ -7,7 +7,7 @@
 
 #include "app/commands.h"
 #include "app/repository.h"
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "infer/runtime_torch.h"
 
 namespace amt::app {

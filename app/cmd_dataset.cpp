@@ -6,14 +6,14 @@
 
 #include "app/commands.h"
 #include "app/repository.h"
-#include "data_tools/atomic_file.h"
-#include "data_tools/dataset_builder.h"
-#include "data_tools/dataset_info.h"
-#include "data_tools/dataset_preview.h"
-#include "data_tools/dataset_quality.h"
-#include "data_tools/error.h"
-#include "data_tools/example_dataset.h"
-#include "data_tools/garment_pairs.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/builder/dataset_builder.h"
+#include "data_tools/builder/dataset_info.h"
+#include "data_tools/builder/dataset_preview.h"
+#include "data_tools/builder/dataset_quality.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/builder/example_dataset.h"
+#include "data_tools/builder/garment_pairs.h"
 
 namespace amt::app {
 namespace {
@@ -87,7 +87,7 @@ void add_preview_command(CLI::App& dataset) {
 // The motions of `amt dataset build` when --motions is not given: the 20 CMU clips in the repository.
 constexpr const char* kDefaultMotions = "data/mocap/cmu";
 
-// `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/dataset_builder.h).
+// `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/builder/dataset_builder.h).
 void add_build_command(CLI::App& dataset) {
   auto* build = dataset.add_subcommand(
       "build", "Build a dataset: procedural dressed characters simulated under every motion clip, one HDF5 shard "
@@ -130,7 +130,7 @@ void add_build_command(CLI::App& dataset) {
 }
 
 // `amt dataset pairs --out FILE`: bodies dressed in pairs with one garment template, simulated under the same
-// clips (data_tools/garment_pairs.h): the test bed of `amt retarget-cloth` and of `amt eval`'s cloth_retarget.
+// clips (data_tools/builder/garment_pairs.h): the test bed of `amt retarget-cloth` and of `amt eval`'s cloth_retarget.
 void add_pairs_command(CLI::App& dataset) {
   auto* pairs = dataset.add_subcommand(
       "pairs", "Build a garment pair set: pairs of bodies dressed with one garment template (identical apparel "
@@ -156,7 +156,7 @@ void add_pairs_command(CLI::App& dataset) {
   });
 }
 
-// `amt dataset check DIR`: the quality gates of a built dataset (data_tools/dataset_quality.h).
+// `amt dataset check DIR`: the quality gates of a built dataset (data_tools/builder/dataset_quality.h).
 void add_check_command(CLI::App& dataset) {
   auto* check = dataset.add_subcommand(
       "check", "Quality gates of a built dataset folder: apparel lag, explosions, jumps, penetration; variety "

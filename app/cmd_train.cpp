@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "app/commands.h"
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "train/module_options.h"
 #include "train/trainer.h"
 

@@ -14,9 +14,9 @@
 
 #include "app/commands.h"
 #include "app/repository.h"
-#include "data_tools/error.h"
-#include "data_tools/input_file.h"
-#include "data_tools/viewer_folder.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/input_file.h"
+#include "data_tools/formats/viewer_folder.h"
 
 namespace amt::app {
 namespace {

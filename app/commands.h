@@ -20,7 +20,7 @@ void add_bench_command(CLI::App& app);
 /// `amt animate`: a character and a motion -> an animated GLB, OBJ folder or dataset file (infer/).
 void add_animate_command(CLI::App& app);
 
-/// `amt view FILES...`: a local web viewer of GLBs or of a viewer folder (data_tools/viewer_folder.h).
+/// `amt view FILES...`: a local web viewer of GLBs or of a viewer folder (data_tools/formats/viewer_folder.h).
 void add_view_command(CLI::App& app);
 /// `amt retarget-cloth`: apparel motion from a source body onto a target body (infer/retarget_cloth.h).
 void add_retarget_cloth_command(CLI::App& app);

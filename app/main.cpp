@@ -17,9 +17,9 @@
 
 #include "amt/version.h"
 #include "app/commands.h"
-#include "data_tools/error.h"
-#include "data_tools/temporary_registry.h"
-#include "data_tools/threads.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/threads.h"
 
 namespace amt::app {
 
@@ -55,7 +55,7 @@ void prefer_passive_openmp_waiting(char** argv) {
   execv("/proc/self/exe", argv);  // returns only on failure: then run on with the default policy
 }
 
-// SIGINT and SIGTERM remove the temporaries of the run they interrupt (data_tools/temporary_registry.h)
+// SIGINT and SIGTERM remove the temporaries of the run they interrupt (data_tools/formats/temporary_registry.h)
 // and end the process with 128 + the signal, as a shell reports a process killed by it.
 //
 // The signals are blocked in the main thread before it starts any thread, so every thread amt starts

@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <system_error>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt::app {
 namespace {

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <iostream>
 
-#include "data_tools/checksum_torch.h"
-#include "data_tools/error.h"
-#include "data_tools/input_file.h"
+#include "data_tools/formats/checksum_torch.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/input_file.h"
 #include "infer/bind_cache_torch.h"
 #include "train/checkpoint.h"
 

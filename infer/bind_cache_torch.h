@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/mesh.h"
+#include "data_tools/geometry/mesh.h"
 #include "train/pipeline.h"
 
 namespace amt {

@@ -8,14 +8,14 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "data_tools/apparel.h"
-#include "data_tools/body_generator.h"
-#include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
-#include "data_tools/input_file.h"
-#include "data_tools/gltf_import.h"
-#include "data_tools/obj_io.h"
-#include "data_tools/pmx_import.h"
+#include "data_tools/builder/apparel.h"
+#include "data_tools/builder/body_generator.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/input_file.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/obj_io.h"
+#include "data_tools/formats/pmx_import.h"
 
 namespace amt {
 

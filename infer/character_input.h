@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/joint_map.h"
-#include "data_tools/mesh.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/formats/joint_map.h"
+#include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/skeleton.h"
 
 namespace amt {
 
@@ -18,7 +18,7 @@ namespace amt {
 
 /// The canonical skeleton of a file skeleton and how it was made.
 ///   skeleton        canonical names and parents; rest joints from the mapped file joints (metres)
-///   mapping         the file joint of each canonical joint (data_tools/joint_map.h)
+///   mapping         the file joint of each canonical joint (data_tools/formats/joint_map.h)
 ///   placed          canonical joints the file lacks (their file joint is their canonical parent's),
 ///                   placed evenly on the line between the nearest mapped ancestor and descendant
 ///                   (a leaf, the foot, continues its parent bone in the canonical proportions)
@@ -58,7 +58,7 @@ CanonicalRest canonical_rest(const Skeleton& file, const std::optional<JointMapF
 ///   spec        "hero.glb", "hero.gltf", "hero.obj", "hero.pmx", "data.h5:character_name", or
 ///               "generated:SEED[:VERTICES]" for the dataset builder's dressed stylized character
 ///               (generate_body + dress_character, about VERTICES vertices, 8000 by default, ~30 % apparel)
-///   joints      a joints JSON (data_tools/obj_io.h) giving the skeleton of an unrigged mesh; for OBJ
+///   joints      a joints JSON (data_tools/formats/obj_io.h) giving the skeleton of an unrigged mesh; for OBJ
 ///               the sidecar "<stem>.joints.json" is used when this is empty
 ///   joint_map   the user's joint map (`--character-joint-map`), or empty
 struct CharacterSpec {

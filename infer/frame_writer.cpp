@@ -9,11 +9,11 @@
 #include <filesystem>
 #include <fstream>
 
-#include "data_tools/atomic_file.h"
-#include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
-#include "data_tools/temporary_registry.h"
-#include "data_tools/obj_io.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/temporary_registry.h"
+#include "data_tools/formats/obj_io.h"
 #include "infer/glb_stream_writer.h"
 
 namespace amt {

@@ -1,11 +1,11 @@
 #pragma once
 // The runtime's outputs, written frame by frame so that memory stays flat however long the motion:
-//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/gltf_export.h),
+//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/formats/gltf_export.h),
 //          the apparel mask in use as its COLOR_0 tint
-//   .h5    the dataset format (data_tools/dataset_file.h): the character (rest mesh, canonical skeleton,
+//   .h5    the dataset format (data_tools/formats/dataset_file.h): the character (rest mesh, canonical skeleton,
 //          the apparel mask in use, skinning weights) and one clip whose `vertices` are the predictions,
 //          so that `amt eval --predictions` can score it against the ground truth of the same names
-//   other  a folder of OBJ files frame_0000.obj, ... (data_tools/obj_io.h)
+//   other  a folder of OBJ files frame_0000.obj, ... (data_tools/formats/obj_io.h)
 // Nothing half-written: each output is built under a temporary name ("<out>.tmp", a folder for OBJ)
 // and renamed onto the output by finish(); a writer destroyed before finish() removes it.
 // Nothing lost: a .glb or .h5 output replaces only a regular file; an OBJ folder holds the marker
@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/mesh.h"
-#include "data_tools/skeleton.h"
-#include "data_tools/types.h"
+#include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/skeleton.h"
+#include "data_tools/geometry/types.h"
 
 namespace amt {
 

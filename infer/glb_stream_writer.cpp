@@ -9,10 +9,10 @@
 #include <nlohmann/json.hpp>
 
 #include "amt/version.h"
-#include "data_tools/atomic_file.h"
-#include "data_tools/error.h"
-#include "data_tools/gltf_export.h"
-#include "data_tools/temporary_registry.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/gltf_export.h"
+#include "data_tools/formats/temporary_registry.h"
 
 namespace amt {
 

@@ -1,5 +1,5 @@
 #pragma once
-// A streaming writer of the mesh-sequence GLB of data_tools/gltf_export.h ("morph target per frame",
+// A streaming writer of the mesh-sequence GLB of data_tools/formats/gltf_export.h ("morph target per frame",
 // the same layout, the same asset.extras record), for outputs too long to hold in memory: each frame's
 // deltas go to a temporary data file as they come, and finish() assembles the GLB (JSON chunk, then
 // the binary chunk copied from the data file) under "<path>.tmp" and renames it onto the path. Memory
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 
 namespace amt {
 
@@ -29,7 +29,7 @@ class GlbStreamWriter {
   /// Starts a sequence at `path` (.glb) over faces F (#F by 3) of `num_vertices` vertices at `fps`.
   /// Creates the parent folder and the temporary data file "<path>.frames.tmp". `name` names the mesh
   /// and node, `clip` the animation; `apparel_mask` (#V entries 0/1, or empty for none) is written as
-  /// the COLOR_0 tint of data_tools/gltf_export.h. Throws amt::Error for bad faces, a mask of the wrong
+  /// the COLOR_0 tint of data_tools/formats/gltf_export.h. Throws amt::Error for bad faces, a mask of the wrong
   /// size, fps <= 0, or an unwritable path.
   GlbStreamWriter(const std::string& path, const MatrixX3i& F, int num_vertices, float fps,
                   const std::string& name = "amt_mesh", const std::string& clip = "amt_animation",

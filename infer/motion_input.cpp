@@ -4,11 +4,11 @@
 #include <cmath>
 #include <filesystem>
 
-#include "data_tools/bvh_import.h"
-#include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
-#include "data_tools/gltf_import.h"
-#include "data_tools/retarget.h"
+#include "data_tools/formats/bvh_import.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/retarget.h"
 
 namespace amt {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <string>
 
-#include "data_tools/motion.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/geometry/skeleton.h"
 #include "infer/character_input.h"
 
 namespace amt {
@@ -63,7 +63,7 @@ struct PlaybackOptions {
 
 /// The joint transforms of a motion on a character, frame by frame. A dataset clip on its own
 /// character at its own frame rate is played exactly as stored (read per frame, never whole), so the
-/// runtime sees what the evaluation sees; anything else is retargeted (data_tools/retarget.h).
+/// runtime sees what the evaluation sees; anything else is retargeted (data_tools/geometry/retarget.h).
 class MotionPlayer {
  public:
   /// Prepares playback of `source` on `character`. Throws amt::Error for a frame rate out of range.

@@ -12,11 +12,11 @@
 #include <sstream>
 #include <vector>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
-#include "data_tools/lbs.h"
-#include "data_tools/motion.h"
-#include "data_tools/obj_io.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/formats/obj_io.h"
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 

@@ -1,6 +1,6 @@
 #pragma once
 // The `amt retarget-cloth` job (issue 13, item 3): the apparel motion of a source character carried onto a
-// target character whose apparel has the same connectivity (data_tools/cloth_retarget.h), under a target body
+// target character whose apparel has the same connectivity (data_tools/garment/cloth_retarget.h), under a target body
 // motion, streamed to a GLB / OBJ sequence / dataset file like `amt animate` (infer/frame_writer.h).
 //   source         a dataset clip "data.h5:clip" (its character's simulated apparel, body included), or a
 //                  folder of OBJ frames frame_0000.obj, ... (whole meshes as `amt animate` writes them) with
@@ -13,8 +13,8 @@
 // retargeted apparel. Frame t of the target motion takes frame t of the source (at the source's frame rate).
 #include <string>
 
-#include "data_tools/cloth_retarget.h"
-#include "data_tools/metrics.h"
+#include "data_tools/garment/cloth_retarget.h"
+#include "data_tools/geometry/metrics.h"
 #include "infer/motion_input.h"
 
 namespace amt {

@@ -12,11 +12,11 @@
 #include <iostream>
 #include <sstream>
 
-#include "data_tools/error.h"
-#include "data_tools/lbs.h"
-#include "data_tools/motion.h"
-#include "data_tools/render.h"
-#include "data_tools/viewer_folder.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/formats/render.h"
+#include "data_tools/formats/viewer_folder.h"
 
 namespace amt {
 

@@ -8,12 +8,12 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/metrics.h"
+#include "data_tools/geometry/metrics.h"
 #include "infer/bind_cache_torch.h"
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 #include "infer/motion_input.h"
-#include "data_tools/penetration_resolution.h"
+#include "data_tools/garment/penetration_resolution.h"
 #include "train/pipeline.h"
 
 namespace amt {
@@ -85,7 +85,7 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 ///   out         .glb, .h5 or an OBJ folder (infer/frame_writer.h); may be empty when html_dir is set
 ///   bind_path   bind cache file; empty: "<out without extension>.bind" beside the output (beside
 ///               html_dir/prediction.glb without out); "none" disables
-///   html_dir    when not empty, also a viewer folder (data_tools/viewer_folder.h): prediction.glb and
+///   html_dir    when not empty, also a viewer folder (data_tools/formats/viewer_folder.h): prediction.glb and
 ///               skinning.glb (anchor_skinning_weights) side by side, opened with `amt view html_dir`;
 ///               viewer_dir is the repository's viewer/ its page is copied from
 ///   apparel_mask  a mask file overriding the segmenter (read_apparel_mask), or empty
@@ -103,7 +103,7 @@ struct AnimateOptions {
   /// Print the mapping and a progress line (done/total, frames/s, ETA) on stderr.
   bool verbose = true;
   /// When not empty, a PNG of four output frames (at 20, 40, 60 and 80 % of the clip) side by side,
-  /// rendered with data_tools/render.h (apparel in blue), for a quick look without a glTF viewer.
+  /// rendered with data_tools/formats/render.h (apparel in blue), for a quick look without a glTF viewer.
   std::string picture;
 };
 

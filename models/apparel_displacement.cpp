@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <string>
 
-#include "data_tools/geodesic.h"
+#include "data_tools/geometry/geodesic.h"
 
 #include "models/pointnet.h"
 

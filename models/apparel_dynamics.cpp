@@ -10,8 +10,8 @@
 #include <queue>
 #include <string>
 
-#include "data_tools/error.h"
-#include "data_tools/geodesic.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/geodesic.h"
 #include "models/apparel_displacement.h"
 #include "models/pointnet.h"
 

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <vector>
 
-#include "data_tools/lbs_torch.h"
+#include "data_tools/geometry/lbs_torch.h"
 #include "models/losses.h"
 #include "models/skinning_predictor.h"
 

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <limits>
 
-#include "data_tools/error.h"
-#include "data_tools/mesh.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/mesh.h"
 #include "refit/aabb_tree.h"
 #include "refit/assembly.h"
 #include "refit/barrier.h"

@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/ccd.h"
 
 namespace amt::refit {

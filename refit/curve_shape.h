@@ -6,7 +6,7 @@
 #include <array>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/newton.h"
 
 namespace amt::refit {

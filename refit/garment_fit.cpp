@@ -1,6 +1,6 @@
 #include "refit/garment_fit.h"
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "refit/curve_shape.h"
 #include "refit/positional.h"
 #include "refit/surface_shape.h"

@@ -8,7 +8,7 @@
 #include <functional>
 #include <string>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/newton.h"
 #include "refit/refit_weights.h"
 

@@ -4,7 +4,7 @@
 #include <limits>
 #include <memory>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "refit/curve_shape.h"
 #include "refit/positional.h"
 #include "refit/surface_shape.h"

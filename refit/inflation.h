@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/newton.h"
 #include "refit/refit_weights.h"
 #include "refit/skeleton_shrink.h"

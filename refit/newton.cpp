@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt::refit {
 namespace {

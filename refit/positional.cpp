@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <map>
 
-#include "data_tools/error.h"
-#include "data_tools/mesh.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/mesh.h"
 #include "refit/assembly.h"
 #include "refit/jet.h"
 #include "refit/skeleton_shrink.h"

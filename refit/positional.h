@@ -4,7 +4,7 @@
 // that a sleeve follows a longer arm and a hem a longer leg.
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/newton.h"
 
 namespace amt::refit {

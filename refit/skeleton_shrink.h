@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/contact.h"
 
 namespace amt::refit {
@@ -15,7 +15,7 @@ namespace amt::refit {
 // === Bones
 
 /// The bones of a skeleton given by its joint parents (#J, -1 for roots; the convention of
-/// data_tools/skeleton.h): bone b runs from joint parents[j] to joint j, for every non-root j in order.
+/// data_tools/geometry/skeleton.h): bone b runs from joint parents[j] to joint j, for every non-root j in order.
 /// Returns #B by 2 (parent joint, child joint).
 MatrixX2i skeleton_bones(const std::vector<int32_t>& parents);
 

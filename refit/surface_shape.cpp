@@ -4,7 +4,7 @@
 #include <cmath>
 #include <map>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "refit/assembly.h"
 #include "refit/jet.h"
 

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "refit/aabb_tree.h"
 
 namespace amt::refit {

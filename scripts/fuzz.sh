@@ -15,26 +15,26 @@ out=build-fuzz
 mkdir -p "$out/generated/amt"
 printf '#pragma once\n#define AMT_VERSION "fuzz"\n' > "$out/generated/amt/version.h"
 flags=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I"$out/generated" -I/usr/include/eigen3)
-core=(data_tools/mesh.cpp data_tools/skeleton.cpp data_tools/motion.cpp data_tools/lbs.cpp data_tools/input_file.cpp)
+core=(data_tools/geometry/mesh.cpp data_tools/geometry/skeleton.cpp data_tools/geometry/motion.cpp data_tools/geometry/lbs.cpp data_tools/formats/input_file.cpp)
 
 for target in "${targets[@]}"; do
   dir="$out/$target"
   mkdir -p "$dir/corpus"
   case "$target" in
     bvh)
-      sources=(data_tools/bvh_import.cpp data_tools/joint_map.cpp "${core[@]}")
+      sources=(data_tools/formats/bvh_import.cpp data_tools/formats/joint_map.cpp "${core[@]}")
       libs=()
       cp tests/assets/bvh/*.bvh "$dir/corpus/" 2>/dev/null || true
       ;;
     pmx)
-      sources=(data_tools/pmx_import.cpp "${core[@]}")
+      sources=(data_tools/formats/pmx_import.cpp "${core[@]}")
       libs=()
       cp data/pmx/*.pmx "$dir/corpus/"
       ;;
     gltf)
       # tinygltf compiled into the target, so the fuzzer instruments it too (Debian has no stb_image).
       sources=(-DAMT_FUZZ_TINYGLTF_FROM_SOURCE -DTINYGLTF_NO_STB_IMAGE -DTINYGLTF_NO_STB_IMAGE_WRITE
-               data_tools/gltf_import.cpp "${core[@]}")
+               data_tools/formats/gltf_import.cpp "${core[@]}")
       libs=()
       cp data/characters/*.glb "$dir/corpus/"
       cp tests/assets/gltf/* "$dir/corpus/" 2>/dev/null || true

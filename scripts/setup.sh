@@ -13,7 +13,7 @@ packages=(
   libgtest-dev libbullet-dev nlohmann-json3-dev libnanoflann-dev
   libopenvdb-dev libboost-dev libtbb-dev
   gnuplot-nox           # report plots (PNG)
-  libstb-dev            # stb_image_write: PNG pictures of characters (data_tools/render.h)
+  libstb-dev            # stb_image_write: PNG pictures of characters (data_tools/formats/render.h)
   libcgal-dev           # exact triangle-triangle intersection tests of the garment refit (tests/refit)
   libcpp-httplib-dev    # the local HTTP server of `amt view`
   chromium              # the headless browser of the viewer's test (tests/viewer/)

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt::test {
 

@@ -10,11 +10,11 @@
 #include <filesystem>
 #include <sstream>
 
-#include "data_tools/atomic_file.h"
-#include "data_tools/checksum_torch.h"
-#include "data_tools/error.h"
-#include "data_tools/input_file.h"
-#include "data_tools/temporary_registry.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/checksum_torch.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/input_file.h"
+#include "data_tools/formats/temporary_registry.h"
 #include "train/module_options.h"
 
 namespace amt {

@@ -16,13 +16,13 @@
 #include <optional>
 #include <tuple>
 
-#include "data_tools/body_penetration.h"
-#include "data_tools/dataset_file.h"
-#include "data_tools/cloth_retarget.h"
-#include "data_tools/error.h"
-#include "data_tools/garment_pairs.h"
-#include "data_tools/lbs_torch.h"
-#include "data_tools/metrics_torch.h"
+#include "data_tools/garment/body_penetration.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/garment/cloth_retarget.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/builder/garment_pairs.h"
+#include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/metrics_torch.h"
 #include "models/apparel_dynamics.h"
 #include "models/edge_conv.h"
 #include "train/samples.h"
@@ -481,9 +481,9 @@ std::vector<uint8_t> paper_frames(int64_t T, const EvaluateOptions& options) {
   return paper_frame;
 }
 
-// Cloth retargeting (issue 13) on the garment pairs of the shards (data_tools/garment_pairs.h): every held-out
+// Cloth retargeting (issue 13) on the garment pairs of the shards (data_tools/builder/garment_pairs.h): every held-out
 // clip that is the target of a pair (its first source, in file order) is scored with the apparel of the source
-// clip's simulation retargeted onto the target's ground-truth body (data_tools/cloth_retarget.h), against the
+// clip's simulation retargeted onto the target's ground-truth body (data_tools/garment/cloth_retarget.h), against the
 // target's own simulation, as "cloth_retarget" (collisions resolved) and "cloth_retarget_unresolved" (detail
 // vectors shortened, no push-out), in the clip's own subset, beside the methods run on the same clip. Both
 // protocols: retargeting has no state, so the paper protocol scores the windows' predicted frames of the same

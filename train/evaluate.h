@@ -1,7 +1,7 @@
 #pragma once
 // Evaluation of a trained model on a dataset's held-out data (DESIGN.md section 5, paper 5.3 and
 // Tables 2-4): every method runs through the one forward path of train/pipeline.h, and is scored with
-// data_tools/metrics.h (PMD, PMD_a, PMD_b in cm, ELS, penetration share and depth; vertex -> frame ->
+// data_tools/geometry/metrics.h (PMD, PMD_a, PMD_b in cm, ELS, penetration share and depth; vertex -> frame ->
 // clip averaging of ScoreAccumulator) in two protocols:
 //   "paper"    windows of `window` (10) frames at a stride of window - 3, the first 3 apparel states
 //              from ground truth, metrics over the window - 3 predicted frames (every frame from the
@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/metrics.h"
+#include "data_tools/geometry/metrics.h"
 #include "train/pipeline.h"
 
 namespace amt {
@@ -37,9 +37,9 @@ namespace amt {
 ///   full_gt_mask       the full model with the ground-truth apparel mask (Table 4's "G + attention");
 ///   no_geodesic, sort_by_geodesic  the full model, ground-truth mask, with the ablation skinning
 ///                      predictors of Table 4 (only when their checkpoints are in the model folder).
-///   cloth_retarget     on clips that are the target of a garment pair (data_tools/garment_pairs.h): the
+///   cloth_retarget     on clips that are the target of a garment pair (data_tools/builder/garment_pairs.h): the
 ///                      apparel of the pair's other body, simulated under the same motion, retargeted onto
-///                      this clip's ground-truth body (data_tools/cloth_retarget.h); no network;
+///                      this clip's ground-truth body (data_tools/garment/cloth_retarget.h); no network;
 ///   cloth_retarget_unresolved  the same without the push-out of apparel vertices inside the body.
 std::vector<std::string> evaluation_methods();
 

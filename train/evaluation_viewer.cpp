@@ -4,9 +4,9 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "data_tools/error.h"
-#include "data_tools/gltf_export.h"
-#include "data_tools/viewer_folder.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/gltf_export.h"
+#include "data_tools/formats/viewer_folder.h"
 
 namespace amt {
 

@@ -6,7 +6,7 @@
 #include <set>
 #include <vector>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt {
 namespace {

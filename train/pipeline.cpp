@@ -9,10 +9,10 @@
 #include <filesystem>
 #include <sstream>
 
-#include "data_tools/error.h"
-#include "data_tools/geodesic.h"
-#include "data_tools/lbs_torch.h"
-#include "data_tools/mesh.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/geodesic.h"
+#include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/mesh.h"
 #include "models/edge_conv.h"
 #include "train/module_options.h"
 

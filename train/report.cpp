@@ -16,9 +16,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "data_tools/atomic_file.h"
-#include "data_tools/temporary_registry.h"
-#include "data_tools/error.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/error.h"
 
 extern char** environ;
 

@@ -8,10 +8,10 @@
 #include <iomanip>
 #include <sstream>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/error.h"
-#include "data_tools/geodesic.h"
-#include "data_tools/mesh.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/geodesic.h"
+#include "data_tools/geometry/mesh.h"
 #include "models/apparel_displacement.h"
 #include "models/edge_conv.h"
 

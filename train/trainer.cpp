@@ -20,9 +20,9 @@
 #include <sstream>
 #include <type_traits>
 
-#include "data_tools/atomic_file.h"
-#include "data_tools/error.h"
-#include "data_tools/lbs_torch.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs_torch.h"
 #include "train/module_options.h"
 #include "train/pipeline.h"
 #include "train/samples.h"

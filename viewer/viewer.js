@@ -1,4 +1,4 @@
-// amt's viewer: plays the mesh-sequence GLBs that amt writes (data_tools/gltf_export.h: frame 0 as
+// amt's viewer: plays the mesh-sequence GLBs that amt writes (data_tools/formats/gltf_export.h: frame 0 as
 // POSITION, frame k as morph target k, the apparel mask as the COLOR_0 tint) side by side on one clock.
 //
 // What it plays comes from a manifest, viewer.json beside the page (or ?manifest=NAME):

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/gltf_import.h"
-#include "data_tools/obj_io.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/obj_io.h"
 #include "tests/app/amt_cli.h"
 
 namespace amt {

@@ -2,8 +2,8 @@
 // 1000-vertex character, two 4-frame procedural clips): what each prints and writes, bad inputs as one
 // line naming the file or option with nothing written, and a --out that amt did not write refused and
 // left untouched. (More of `info`, on a good, missing and damaged file and on folders:
-// tests/data_tools/dataset_info_test.cpp DatasetInfoCommand.* and DatasetFolderInfo.*; resuming and
-// damaged shards: tests/data_tools/dataset_builder_test.cpp.)
+// tests/data_tools/builder/dataset_info_test.cpp DatasetInfoCommand.* and DatasetFolderInfo.*; resuming and
+// damaged shards: tests/data_tools/builder/dataset_builder_test.cpp.)
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/gltf_import.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/gltf_import.h"
 #include "tests/app/amt_cli.h"
 
 namespace amt {

@@ -1,4 +1,4 @@
-// libFuzzer target for the glTF importer (data_tools/gltf_import.h): parses the input bytes as a GLB or
+// libFuzzer target for the glTF importer (data_tools/formats/gltf_import.h): parses the input bytes as a GLB or
 // glTF JSON asset from memory (no folder: external files are refused, nothing is read from disk) and,
 // when that succeeds, imports the skinned character, samples every clip as a motion and evaluates
 // the vertex animation of the first clip. Bad input must end in amt::Error; anything else (a crash, a
@@ -13,8 +13,8 @@
 //
 //   clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -DAMT_FUZZ_TINYGLTF_FROM_SOURCE \
 //     -DTINYGLTF_NO_STB_IMAGE -DTINYGLTF_NO_STB_IMAGE_WRITE -I. -Ibuild-gltf/generated -I/usr/include/eigen3 \
-//     tests/fuzz/gltf_fuzz.cpp data_tools/gltf_import.cpp data_tools/motion.cpp data_tools/skeleton.cpp \
-//     data_tools/mesh.cpp data_tools/lbs.cpp -fopenmp -o build-gltf/gltf_fuzz
+//     tests/fuzz/gltf_fuzz.cpp data_tools/formats/gltf_import.cpp data_tools/geometry/motion.cpp data_tools/geometry/skeleton.cpp \
+//     data_tools/geometry/mesh.cpp data_tools/geometry/lbs.cpp -fopenmp -o build-gltf/gltf_fuzz
 //
 // 2. Against Debian's libtinygltf (not instrumented): the same without the three -D options, with
 //    -ltinygltf at the end.
@@ -35,8 +35,8 @@
 #include <tiny_gltf.h>
 #endif
 
-#include "data_tools/error.h"
-#include "data_tools/gltf_import.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/gltf_import.h"
 
 namespace {
 

@@ -4,14 +4,14 @@
 //
 // Build and run from the repository root (seeded with the PMX fixtures in data/pmx):
 //   clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -I. -I/usr/include/eigen3 \
-//       tests/fuzz/pmx_fuzz.cpp data_tools/pmx_import.cpp -o /tmp/pmx_fuzz
+//       tests/fuzz/pmx_fuzz.cpp data_tools/formats/pmx_import.cpp -o /tmp/pmx_fuzz
 //   mkdir -p /tmp/pmx_corpus && cp data/pmx/*.pmx /tmp/pmx_corpus/
 //   /tmp/pmx_fuzz -max_total_time=120 -max_len=8192 /tmp/pmx_corpus
 #include <cstddef>
 #include <cstdint>
 
-#include "data_tools/error.h"
-#include "data_tools/pmx_import.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/formats/pmx_import.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {

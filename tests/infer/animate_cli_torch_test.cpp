@@ -15,7 +15,7 @@
 #include <sstream>
 #include <thread>
 
-#include "data_tools/gltf_import.h"
+#include "data_tools/formats/gltf_import.h"
 #include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 

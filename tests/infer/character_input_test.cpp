@@ -6,8 +6,8 @@
 
 #include <fstream>
 
-#include "data_tools/obj_io.h"
-#include "data_tools/shapes.h"
+#include "data_tools/formats/obj_io.h"
+#include "data_tools/geometry/shapes.h"
 #include "tests/test_support.h"
 
 namespace amt {

@@ -12,7 +12,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "data_tools/shapes.h"
+#include "data_tools/geometry/shapes.h"
 #include "tests/test_support.h"
 
 namespace amt {

@@ -14,9 +14,9 @@
 #include <iostream>
 #include <sstream>
 
-#include "data_tools/gltf_export.h"
-#include "data_tools/gltf_import.h"
-#include "data_tools/shapes.h"
+#include "data_tools/formats/gltf_export.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/shapes.h"
 #include "tests/test_support.h"
 
 namespace amt {

@@ -14,12 +14,12 @@
 #include <tuple>
 #include <vector>
 
-#include "data_tools/apparel.h"
-#include "data_tools/body_generator.h"
-#include "data_tools/motion.h"
-#include "data_tools/procedural_motion.h"
-#include "data_tools/retarget.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/builder/apparel.h"
+#include "data_tools/builder/body_generator.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/geometry/procedural_motion.h"
+#include "data_tools/geometry/retarget.h"
+#include "data_tools/geometry/skeleton.h"
 #include "infer/runtime_torch.h"
 #include "train/pipeline.h"
 

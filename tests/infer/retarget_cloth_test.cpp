@@ -5,10 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/garment_pairs.h"
-#include "data_tools/obj_io.h"
-#include "tests/data_tools/tiny_build.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/builder/garment_pairs.h"
+#include "data_tools/formats/obj_io.h"
+#include "tests/data_tools/builder/tiny_build.h"
 #include "tests/test_support.h"
 
 namespace amt {

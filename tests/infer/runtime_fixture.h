@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "data_tools/dataset_file.h"
+#include "data_tools/formats/dataset_file.h"
 #include "infer/runtime_torch.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"

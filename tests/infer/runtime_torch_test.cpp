@@ -11,12 +11,12 @@
 #include <filesystem>
 #include <fstream>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/gltf_import.h"
-#include "data_tools/lbs.h"
-#include "data_tools/motion.h"
-#include "data_tools/obj_io.h"
-#include "data_tools/shapes.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/formats/obj_io.h"
+#include "data_tools/geometry/shapes.h"
 #include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
@@ -186,7 +186,7 @@ MatrixX3f rows_of(const MatrixX3f& V, const at::Tensor& ids) {
 
 // The runtime's dataset output against the paper's forward pass composed here from its parts, without
 // the PipelineStepper the runtime runs (and run_pipeline wraps): per frame, B̂ and the apparel anchor S
-// by the CPU skinning of data_tools/lbs.h (eq. 4), Â by the apparel module's own rollout from the rest
+// by the CPU skinning of data_tools/geometry/lbs.h (eq. 4), Â by the apparel module's own rollout from the rest
 // history (eq. 11, the trainer's path), tiled by the mask in mesh order and refined by the refiner's
 // unprepared forward over all frames at once (eq. 16). Only the bind (weights, mask, apparel graph) is
 // shared.

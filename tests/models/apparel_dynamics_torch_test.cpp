@@ -5,7 +5,7 @@
 // the attachment distances on a hand-made mesh, and the inertia fit.
 #include "models/apparel_dynamics.h"
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "models/edge_conv.h"
 
 #include <ATen/ATen.h>

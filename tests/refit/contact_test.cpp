@@ -8,7 +8,7 @@
 #include <cmath>
 #include <random>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "refit/barrier.h"
 #include "refit/distance.h"
 #include "finite_difference.h"

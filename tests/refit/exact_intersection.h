@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/contact.h"
 
 namespace amt::refit::test {

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "finite_difference.h"
 #include "test_meshes.h"
 #include "refit/curve_shape.h"

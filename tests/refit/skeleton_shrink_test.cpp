@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt::refit {
 namespace {

@@ -2,7 +2,7 @@
 // Small meshes for the refit tests.
 #include <cmath>
 
-#include "data_tools/types.h"
+#include "data_tools/geometry/types.h"
 #include "refit/contact.h"
 
 namespace amt::refit::test {

@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "exact_intersection.h"
 #include "refit/garment_fit.h"
 #include "refit/inflation.h"

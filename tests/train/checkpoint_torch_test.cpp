@@ -13,8 +13,8 @@
 #include <functional>
 #include <string>
 
-#include "data_tools/error.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/skeleton.h"
 #include "micro_dataset.h"
 #include "tests/file_size_limit.h"
 #include "tests/test_support.h"

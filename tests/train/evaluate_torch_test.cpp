@@ -13,12 +13,12 @@
 #include <sstream>
 #include <string>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/example_dataset.h"
-#include "data_tools/gltf_import.h"
-#include "data_tools/lbs.h"
-#include "data_tools/procedural_motion.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/builder/example_dataset.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/procedural_motion.h"
+#include "data_tools/geometry/skeleton.h"
 #include "fresh_model.h"
 #include "micro_dataset.h"
 #include "train/evaluation_viewer.h"

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/skeleton.h"
+#include "data_tools/geometry/skeleton.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
 #include "models/joint_refiner.h"

@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/example_dataset.h"
-#include "data_tools/lbs.h"
-#include "data_tools/procedural_motion.h"
-#include "data_tools/threads.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/builder/example_dataset.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/procedural_motion.h"
+#include "data_tools/geometry/threads.h"
 #include "tests/test_support.h"
 
 namespace amt::test {

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "tests/test_support.h"
 
 namespace amt {

@@ -11,9 +11,9 @@
 #include <string>
 #include <tuple>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/lbs_torch.h"
-#include "data_tools/skeleton.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/skeleton.h"
 #include "micro_dataset.h"
 #include "fresh_model.h"
 #include "train/module_options.h"

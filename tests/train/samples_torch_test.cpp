@@ -7,7 +7,7 @@
 
 #include <filesystem>
 
-#include "data_tools/error.h"
+#include "data_tools/geometry/error.h"
 #include "micro_dataset.h"
 
 namespace amt {

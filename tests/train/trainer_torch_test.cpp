@@ -17,10 +17,10 @@
 #include <sstream>
 #include <string>
 
-#include "data_tools/dataset_file.h"
-#include "data_tools/lbs.h"
-#include "data_tools/procedural_motion.h"
-#include "data_tools/threads.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/procedural_motion.h"
+#include "data_tools/geometry/threads.h"
 #include "micro_dataset.h"
 #include "tests/test_support.h"
 #include "train/module_options.h"

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "data_tools/gltf_export.h"
-#include "data_tools/shapes.h"
+#include "data_tools/formats/gltf_export.h"
+#include "data_tools/geometry/shapes.h"
 #include "tests/test_support.h"
 
 namespace amt {

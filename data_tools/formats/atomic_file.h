@@ -1,0 +1,43 @@
+#pragma once
+// Writing files so that no partial output ever replaces a good file: everything the project writes
+// goes to "<path>.tmp" first and is renamed onto the path only when complete.
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+namespace amt {
+
+/// The temporary name a file is written under before it replaces `path`: "<path>.tmp".
+std::string temporary_path(const std::string& path);
+
+/// Creates the folder that will hold `path` (and its parents) when missing; throws amt::Error
+/// naming the folder when it cannot.
+void create_parent_folder(const std::string& path);
+
+/// What kind of file a status describes, for messages: "a folder", "a symbolic link", "a FIFO", ...
+std::string describe_file_type(std::filesystem::file_type type);
+
+/// Checks that a file amt writes may replace whatever is at `path`: nothing, or a regular file (never
+/// a folder, a symbolic link, a FIFO, a socket or a device). Throws amt::Error naming the path and
+/// what is there otherwise.
+void check_replaceable_file(const std::string& path);
+
+/// Makes `temporary` ready to be created: removes a stale regular file left by a killed run; throws
+/// amt::Error naming it when it is anything else (a folder, a link that would be written through, a
+/// FIFO that would block), which is left alone.
+void prepare_temporary_file(const std::string& temporary);
+
+/// Removes `temporary` (a file or a folder) and takes it off the live temporaries
+/// (data_tools/formats/temporary_registry.h). Never throws.
+void discard_temporary(const std::string& temporary);
+
+/// Renames `temporary` onto `path`, replacing an old regular file in one step (check_replaceable_file
+/// first) and takes it off the live temporaries. On failure the temporary is removed and amt::Error
+/// names both.
+void replace_with_temporary(const std::string& temporary, const std::string& path);
+
+/// Writes `bytes` to temporary_path(path) (creating the parent folder; registered as a live
+/// temporary while it exists) and renames it onto path.
+void write_file_atomically(const std::string& path, std::string_view bytes);
+
+}  // namespace amt

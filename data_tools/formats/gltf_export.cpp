@@ -1,0 +1,424 @@
+#include "data_tools/formats/gltf_export.h"
+
+// tinygltf is Debian's libtinygltf (linked by data_tools/formats/CMakeLists.txt), built with its default
+// options: no TINYGLTF_* option macros may be defined before including it.
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "amt/version.h"
+#include "data_tools/formats/atomic_file.h"
+#include "data_tools/geometry/error.h"
+
+namespace amt {
+
+namespace {
+
+// Largest frame count of a mesh sequence: the sparse weights accessor holds T (T - 1) elements,
+// addressed by UNSIGNED_INT indices.
+constexpr size_t kMaxSequenceFrames = 65536;
+
+// Builds a tinygltf model with one buffer; every buffer view starts on a 4-byte boundary.
+class ModelBuilder {
+ public:
+  ModelBuilder() {
+    model_.buffers.resize(1);
+    model_.asset.version = "2.0";
+    model_.asset.generator = std::string("amt ") + AMT_VERSION;
+  }
+
+  tinygltf::Model& model() { return model_; }
+
+  /// Appends bytes as a new buffer view (target 0 for none); returns its index.
+  int add_view(const void* bytes, size_t size, int target) {
+    std::vector<unsigned char>& data = model_.buffers[0].data;
+    data.resize((data.size() + 3) / 4 * 4, 0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = data.size();
+    view.byteLength = size;
+    view.target = target;
+    const auto* p = static_cast<const unsigned char*>(bytes);
+    data.insert(data.end(), p, p + size);
+    model_.bufferViews.push_back(view);
+    return int(model_.bufferViews.size()) - 1;
+  }
+
+  /// Adds a FLOAT accessor over `values` (count x components, row-major) in a view of its own; with
+  /// `bounds`, min and max per component (required for POSITION and animation inputs).
+  int add_floats(const std::vector<float>& values, int type, int components, int target, bool bounds) {
+    tinygltf::Accessor acc;
+    acc.bufferView = add_view(values.data(), values.size() * sizeof(float), target);
+    acc.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    acc.type = type;
+    acc.count = values.size() / size_t(components);
+    if (bounds) {
+      acc.minValues.assign(size_t(components), std::numeric_limits<double>::infinity());
+      acc.maxValues.assign(size_t(components), -std::numeric_limits<double>::infinity());
+      for (size_t i = 0; i < values.size(); ++i) {
+        const size_t c = i % size_t(components);
+        acc.minValues[c] = std::min(acc.minValues[c], double(values[i]));
+        acc.maxValues[c] = std::max(acc.maxValues[c], double(values[i]));
+      }
+    }
+    model_.accessors.push_back(acc);
+    return int(model_.accessors.size()) - 1;
+  }
+
+  /// Adds an integer accessor (UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT components) over
+  /// `values` (count x components) in a view of its own.
+  int add_integers(const std::vector<uint32_t>& values, int component_type, int type, int components, int target) {
+    std::vector<unsigned char> bytes;
+    const size_t size = component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
+                        : component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
+                                                                                   : 4;
+    bytes.resize(values.size() * size);
+    for (size_t i = 0; i < values.size(); ++i) {
+      if (size == 1) {
+        bytes[i] = static_cast<unsigned char>(values[i]);
+      } else if (size == 2) {
+        const auto v = static_cast<uint16_t>(values[i]);
+        std::memcpy(&bytes[2 * i], &v, 2);
+      } else {
+        std::memcpy(&bytes[4 * i], &values[i], 4);
+      }
+    }
+    tinygltf::Accessor acc;
+    acc.bufferView = add_view(bytes.data(), bytes.size(), target);
+    acc.componentType = component_type;
+    acc.type = type;
+    acc.count = values.size() / size_t(components);
+    model_.accessors.push_back(acc);
+    return int(model_.accessors.size()) - 1;
+  }
+
+  /// Adds an animation sampler (LINEAR) and its channel to `animation`.
+  static void add_channel(tinygltf::Animation& animation, int input, int output, int node, const char* path) {
+    tinygltf::AnimationSampler sampler;
+    sampler.input = input;
+    sampler.output = output;
+    sampler.interpolation = "LINEAR";
+    animation.samplers.push_back(sampler);
+    tinygltf::AnimationChannel channel;
+    channel.sampler = int(animation.samplers.size()) - 1;
+    channel.target_node = node;
+    channel.target_path = path;
+    animation.channels.push_back(channel);
+  }
+
+  /// Sets asset.extras to amt's format record.
+  void set_format(const char* format, float fps) {
+    tinygltf::Value::Object extras;
+    extras["amt_format"] = tinygltf::Value(std::string(format));
+    extras["amt_format_version"] = tinygltf::Value(1);
+    extras["fps"] = tinygltf::Value(double(fps));
+    model_.asset.extras = tinygltf::Value(extras);
+  }
+
+  /// Adds the apparel tint's record to asset.extras (after set_format).
+  void set_apparel_record(int apparel_vertices) {
+    tinygltf::Value::Object extras = model_.asset.extras.Get<tinygltf::Value::Object>();
+    extras["apparel_color"] = tinygltf::Value(tinygltf::Value::Array{
+        tinygltf::Value(int(kApparelColor[0])), tinygltf::Value(int(kApparelColor[1])),
+        tinygltf::Value(int(kApparelColor[2]))});
+    extras["apparel_vertices"] = tinygltf::Value(apparel_vertices);
+    model_.asset.extras = tinygltf::Value(extras);
+  }
+
+ private:
+  tinygltf::Model model_;
+};
+
+// Keyframe times k / fps for k = 0 .. T - 1.
+std::vector<float> keyframe_times(int frames, float fps) {
+  std::vector<float> times(static_cast<size_t>(frames));
+  for (int k = 0; k < frames; ++k) times[size_t(k)] = float(double(k) / double(fps));
+  return times;
+}
+
+// Triangle indices as the smallest unsigned type that holds every vertex index.
+int add_indices(ModelBuilder& builder, const MatrixX3i& F, int num_vertices) {
+  std::vector<uint32_t> indices(size_t(F.size()));
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) indices[size_t(f) * 3 + size_t(k)] = uint32_t(F(f, k));
+  }
+  const int type =
+      num_vertices <= 65535 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+  return builder.add_integers(indices, type, TINYGLTF_TYPE_SCALAR, 1, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+}
+
+std::vector<float> rows_to_floats(const MatrixX3f& V) {
+  return std::vector<float>(V.data(), V.data() + V.size());  // row-major: x y z per vertex
+}
+
+GltfContainer container_for(const std::string& path, const GltfExportOptions& options) {
+  if (options.container) return *options.container;
+  std::string extension = std::filesystem::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension == ".gltf" ? GltfContainer::kEmbeddedGltf : GltfContainer::kGlb;
+}
+
+// Serialises the model and writes it to "<path>.tmp", then renames it onto path.
+void write_model(const std::string& path, ModelBuilder& builder, GltfContainer container) {
+  tinygltf::Model& model = builder.model();
+  const size_t bytes = model.buffers[0].data.size();
+  AMT_CHECK(container == GltfContainer::kEmbeddedGltf || bytes < (size_t(1) << 32) - (size_t(1) << 24), path,
+            ": buffer: expected less than 4 GiB of data for a GLB file, found ", bytes, " bytes");
+  std::ostringstream stream;
+  tinygltf::TinyGLTF writer;
+  const bool binary = container == GltfContainer::kGlb;
+  AMT_CHECK(writer.WriteGltfSceneToStream(&model, stream, false, binary), path,
+            ": write: expected tinygltf to serialise the model, found an error");
+  const std::string content = stream.str();
+  write_file_atomically(path, content);
+}
+
+void check_fps(float fps, const std::string& path) {
+  AMT_CHECK(std::isfinite(fps) && fps > 0.0f, path, ": fps: expected a positive frame rate, found ", fps);
+}
+
+}  // namespace
+
+// === Mesh sequence
+
+std::vector<uint8_t> apparel_vertex_colors(const std::vector<uint8_t>& apparel_mask, const std::string& path) {
+  std::vector<uint8_t> colors(apparel_mask.size() * 4);
+  for (size_t i = 0; i < apparel_mask.size(); ++i) {
+    AMT_CHECK(apparel_mask[i] <= 1, path, ": apparel mask: expected 0 or 1, found ", int(apparel_mask[i]),
+              " at vertex ", i);
+    std::memcpy(&colors[4 * i], apparel_mask[i] ? kApparelColor : kBodyColor, 4);
+  }
+  return colors;
+}
+
+void export_gltf_mesh_sequence(const std::string& path, const MatrixX3i& F, const std::vector<MatrixX3f>& frames,
+                               float fps, const GltfExportOptions& options) {
+  check_fps(fps, path);
+  AMT_CHECK(!frames.empty(), path, ": frames: expected at least 1 frame, found none");
+  AMT_CHECK(frames.size() <= kMaxSequenceFrames, path, ": frames: expected at most ", kMaxSequenceFrames,
+            " frames, found ", frames.size());
+  const TriMesh first{frames[0], F};
+  validate_mesh(first, path + ": frame 0");
+  const int N = first.num_vertices();
+  for (size_t k = 1; k < frames.size(); ++k) {
+    AMT_CHECK(frames[k].rows() == N, path, ": frames: expected ", N, " vertices in every frame, found ",
+              frames[k].rows(), " in frame ", k);
+    AMT_CHECK(frames[k].allFinite(), path, ": frames: expected finite positions, found NaN or infinity in frame ", k);
+  }
+  const int T = int(frames.size());
+
+  ModelBuilder builder;
+  builder.set_format("mesh-sequence", fps);
+  tinygltf::Model& model = builder.model();
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      builder.add_floats(rows_to_floats(frames[0]), TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
+  primitive.indices = add_indices(builder, F, N);
+  if (!options.apparel_mask.empty()) {
+    AMT_CHECK(options.apparel_mask.size() == size_t(N), path, ": apparel mask: expected ", N, " entries, found ",
+              options.apparel_mask.size());
+    const std::vector<uint8_t> colors = apparel_vertex_colors(options.apparel_mask, path);
+    tinygltf::Accessor color;
+    color.bufferView = builder.add_view(colors.data(), colors.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    color.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    color.normalized = true;
+    color.type = TINYGLTF_TYPE_VEC4;
+    color.count = size_t(N);
+    model.accessors.push_back(color);
+    primitive.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+    builder.set_apparel_record(int(std::count(options.apparel_mask.begin(), options.apparel_mask.end(), 1)));
+  }
+  tinygltf::Mesh mesh;
+  mesh.name = options.name;
+  tinygltf::Value::Array target_names;
+  for (int k = 1; k < T; ++k) {
+    const MatrixX3f delta = frames[size_t(k)] - frames[0];
+    std::map<std::string, int> target;
+    target["POSITION"] =
+        builder.add_floats(rows_to_floats(delta), TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
+    primitive.targets.push_back(target);
+    char name[32];
+    std::snprintf(name, sizeof(name), "frame_%04d", k);
+    target_names.emplace_back(std::string(name));
+  }
+  mesh.primitives.push_back(primitive);
+  if (T > 1) {
+    mesh.weights.assign(size_t(T - 1), 0.0);
+    tinygltf::Value::Object extras;
+    extras["targetNames"] = tinygltf::Value(target_names);
+    mesh.extras = tinygltf::Value(extras);
+  }
+  model.meshes.push_back(mesh);
+  tinygltf::Node node;
+  node.name = options.name;
+  node.mesh = 0;
+  model.nodes.push_back(node);
+
+  if (T > 1) {
+    // Weights output: T keys x (T - 1) targets, zero but for target k - 1 = 1 at key k (sparse).
+    const size_t targets = size_t(T - 1);
+    std::vector<uint32_t> indices;
+    std::vector<float> ones;
+    for (size_t k = 1; k < size_t(T); ++k) {
+      indices.push_back(uint32_t(k * targets + (k - 1)));
+      ones.push_back(1.0f);
+    }
+    tinygltf::Accessor weights;
+    weights.bufferView = -1;
+    weights.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    weights.type = TINYGLTF_TYPE_SCALAR;
+    weights.count = size_t(T) * targets;
+    weights.sparse.isSparse = true;
+    weights.sparse.count = int(indices.size());
+    weights.sparse.indices.bufferView = builder.add_view(indices.data(), indices.size() * sizeof(uint32_t), 0);
+    weights.sparse.indices.byteOffset = 0;
+    weights.sparse.indices.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    weights.sparse.values.bufferView = builder.add_view(ones.data(), ones.size() * sizeof(float), 0);
+    weights.sparse.values.byteOffset = 0;
+    model.accessors.push_back(weights);
+    const int output = int(model.accessors.size()) - 1;
+    const int input = builder.add_floats(keyframe_times(T, fps), TINYGLTF_TYPE_SCALAR, 1, 0, true);
+    tinygltf::Animation animation;
+    animation.name = options.clip;
+    ModelBuilder::add_channel(animation, input, output, 0, "weights");
+    model.animations.push_back(animation);
+  }
+  tinygltf::Scene scene;
+  scene.nodes = {0};
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+  write_model(path, builder, container_for(path, options));
+}
+
+// === Rigged character
+
+void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton,
+                        const SparseWeights& weights, const Motion& motion, const GltfExportOptions& options) {
+  validate_mesh(mesh, path + ": mesh");
+  validate_skeleton(skeleton, path + ": skeleton");
+  validate_motion(motion, skeleton, path + ": motion");
+  AMT_CHECK(motion.num_frames() >= 1, path, ": motion: expected at least 1 frame, found none");
+  const int N = mesh.num_vertices(), J = skeleton.num_joints(), T = motion.num_frames();
+  AMT_CHECK(weights.num_vertices() == N && weights.weights.rows() == N, path, ": weights: expected ", N,
+            " rows (one per vertex), found ", weights.num_vertices());
+  AMT_CHECK(J <= 65536, path, ": skeleton: expected at most 65536 joints, found ", J);
+
+  // JOINTS_0 / WEIGHTS_0: repeated joints merged, slots sorted by weight, rows renormalised, and
+  // zero-weight slots at joint 0 (glTF 2.0 section 3.7.3.3).
+  std::vector<uint32_t> joint_indices(size_t(N) * 4, 0);
+  std::vector<float> joint_weights(size_t(N) * 4, 0.0f);
+  for (int i = 0; i < N; ++i) {
+    std::vector<std::pair<int, float>> slots;
+    for (int s = 0; s < kMaxInfluences; ++s) {
+      const int j = weights.indices(i, s);
+      const float w = weights.weights(i, s);
+      AMT_CHECK(std::isfinite(w) && w >= 0.0f, path, ": weights: expected finite non-negative weights, found ", w,
+                " at vertex ", i);
+      if (w == 0.0f) continue;
+      AMT_CHECK(j >= 0 && j < J, path, ": weights: expected joint indices in [0, ", J, "), found ", j, " at vertex ",
+                i);
+      auto same = std::find_if(slots.begin(), slots.end(), [j](const auto& slot) { return slot.first == j; });
+      if (same != slots.end()) {
+        same->second += w;
+      } else {
+        slots.emplace_back(j, w);
+      }
+    }
+    AMT_CHECK(!slots.empty(), path, ": weights: expected a positive weight at every vertex, found none at vertex ", i);
+    std::stable_sort(slots.begin(), slots.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    float sum = 0.0f;
+    for (const auto& slot : slots) sum += slot.second;
+    for (size_t s = 0; s < slots.size(); ++s) {
+      joint_indices[size_t(i) * 4 + s] = uint32_t(slots[s].first);
+      joint_weights[size_t(i) * 4 + s] = slots[s].second / sum;
+    }
+  }
+
+  ModelBuilder builder;
+  builder.set_format("rigged-character", motion.fps);
+  tinygltf::Model& model = builder.model();
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      builder.add_floats(rows_to_floats(mesh.V), TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
+  const int joint_type = J <= 256 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE : TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+  primitive.attributes["JOINTS_0"] =
+      builder.add_integers(joint_indices, joint_type, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
+  primitive.attributes["WEIGHTS_0"] =
+      builder.add_floats(joint_weights, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  primitive.indices = add_indices(builder, mesh.F, N);
+  tinygltf::Mesh gltf_mesh;
+  gltf_mesh.name = options.name;
+  gltf_mesh.primitives.push_back(primitive);
+  model.meshes.push_back(gltf_mesh);
+
+  // Node 0: the skinned mesh; node 1 + j: joint j at its rest offset from its parent.
+  tinygltf::Node mesh_node;
+  mesh_node.name = options.name;
+  mesh_node.mesh = 0;
+  mesh_node.skin = 0;
+  model.nodes.push_back(mesh_node);
+  std::vector<float> inverse_binds(size_t(J) * 16, 0.0f);
+  tinygltf::Skin skin;
+  skin.name = "amt_skeleton";
+  skin.skeleton = 1;
+  for (int j = 0; j < J; ++j) {
+    const int p = skeleton.parents[size_t(j)];
+    const Eigen::Vector3f rest = skeleton.rest_joints.row(j).transpose();
+    const Eigen::Vector3f offset = p < 0 ? rest : Eigen::Vector3f(rest - skeleton.rest_joints.row(p).transpose());
+    tinygltf::Node joint;
+    joint.name = skeleton.names[size_t(j)];
+    joint.translation = {offset.x(), offset.y(), offset.z()};
+    model.nodes.push_back(joint);
+    if (p >= 0) model.nodes[size_t(p) + 1].children.push_back(j + 1);
+    skin.joints.push_back(j + 1);
+    float* m = &inverse_binds[size_t(j) * 16];  // column-major translate(-J_j)
+    m[0] = m[5] = m[10] = m[15] = 1.0f;
+    m[12] = -rest.x(), m[13] = -rest.y(), m[14] = -rest.z();
+  }
+  skin.inverseBindMatrices = builder.add_floats(inverse_binds, TINYGLTF_TYPE_MAT4, 16, 0, false);
+  model.skins.push_back(skin);
+
+  // Animation: local rotations of every joint, root position.
+  tinygltf::Animation animation;
+  animation.name = options.clip;
+  const int input = builder.add_floats(keyframe_times(T, motion.fps), TINYGLTF_TYPE_SCALAR, 1, 0, true);
+  for (int j = 0; j < J; ++j) {
+    std::vector<float> rotations(size_t(T) * 4);
+    for (int t = 0; t < T; ++t) {
+      const Eigen::Quaternionf q = motion.rotation(t, j).normalized();
+      float* r = &rotations[size_t(t) * 4];
+      r[0] = q.x(), r[1] = q.y(), r[2] = q.z(), r[3] = q.w();
+    }
+    const int output = builder.add_floats(rotations, TINYGLTF_TYPE_VEC4, 4, 0, false);
+    ModelBuilder::add_channel(animation, input, output, j + 1, "rotation");
+  }
+  std::vector<float> root_positions(size_t(T) * 3);
+  for (int t = 0; t < T; ++t) {
+    for (int c = 0; c < 3; ++c) {
+      root_positions[size_t(t) * 3 + size_t(c)] = skeleton.rest_joints(0, c) + motion.root_translation(t, c);
+    }
+  }
+  const int root_output = builder.add_floats(root_positions, TINYGLTF_TYPE_VEC3, 3, 0, false);
+  ModelBuilder::add_channel(animation, input, root_output, 1, "translation");
+  model.animations.push_back(animation);
+
+  tinygltf::Scene scene;
+  scene.nodes = {0, 1};
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+  write_model(path, builder, container_for(path, options));
+}
+
+}  // namespace amt

@@ -1,0 +1,198 @@
+#include "data_tools/garment/penetration_resolution.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/winding_number.h"
+
+namespace amt {
+
+PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask,
+                                         PenetrationOptions options)
+    : options_(options) {
+  AMT_CHECK(options.margin >= 0 && std::isfinite(options.margin), "penetration: margin: expected >= 0, found ",
+            options.margin);
+  AMT_CHECK(options.smoothing_rings >= 0, "penetration: smoothing rings: expected >= 0, found ",
+            options.smoothing_rings);
+  const int N = int(apparel_mask.size());
+  std::vector<int32_t> position(size_t(N), -1);
+  for (int i = 0; i < N; ++i) {
+    std::vector<int32_t>& part = apparel_mask[size_t(i)] ? apparel_ : body_;
+    position[size_t(i)] = int32_t(part.size());
+    part.push_back(i);
+  }
+  std::vector<Eigen::Vector3i> faces;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    bool body = true;
+    for (int k = 0; k < 3; ++k) {
+      AMT_CHECK(F(f, k) >= 0 && F(f, k) < N, "penetration: faces: expected indices in [0, ", N, "), found ", F(f, k));
+      body = body && !apparel_mask[size_t(F(f, k))];
+    }
+    if (body) faces.emplace_back(position[size_t(F(f, 0))], position[size_t(F(f, 1))], position[size_t(F(f, 2))]);
+  }
+  // The body part with its holes (where apparel, or vertices the segmenter took for apparel, were cut
+  // away) closed by fans to centres that follow the boundary: an inside test against a closed surface.
+  body_faces_.resize(Eigen::Index(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) body_faces_.row(Eigen::Index(f)) = faces[f].transpose();
+  if (!faces.empty()) {
+    HoleFill fill = fill_holes(body_faces_, int(body_.size()));
+    holes_ = std::move(fill.holes);
+    body_faces_.conservativeResize(Eigen::Index(faces.size()) + fill.faces.rows(), 3);
+    body_faces_.bottomRows(fill.faces.rows()) = fill.faces;
+  }
+  closed_body_ = !faces.empty() && is_closed_surface(body_faces_);
+  // Apparel graph: mesh edges with both ends apparel, numbered by apparel position.
+  const MatrixX2i E = unique_edges(F);
+  std::vector<Eigen::Vector2i> inner;
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    if (apparel_mask[size_t(E(e, 0))] && apparel_mask[size_t(E(e, 1))]) {
+      inner.emplace_back(position[size_t(E(e, 0))], position[size_t(E(e, 1))]);
+    }
+  }
+  MatrixX2i Ea(Eigen::Index(inner.size()), 2);
+  for (size_t e = 0; e < inner.size(); ++e) Ea.row(Eigen::Index(e)) = inner[e].transpose();
+  apparel_adjacency_ = vertex_adjacency(int(apparel_.size()), Ea);
+}
+
+const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
+  body_scratch_.resize(Eigen::Index(body_.size() + holes_.size()), 3);
+  for (size_t k = 0; k < body_.size(); ++k) body_scratch_.row(Eigen::Index(k)) = V.row(body_[k]);
+  for (size_t h = 0; h < holes_.size(); ++h) {
+    Eigen::RowVector3f centre = Eigen::RowVector3f::Zero();
+    for (const int32_t k : holes_[h]) centre += body_scratch_.row(k);
+    body_scratch_.row(Eigen::Index(body_.size() + h)) = centre / float(holes_[h].size());
+  }
+  if (tree_) {
+    tree_->refit(body_scratch_);
+  } else {
+    tree_ = std::make_unique<WindingNumberTree>(body_scratch_, body_faces_);
+  }
+  return *tree_;
+}
+
+int PenetrationResolver::classify(const MatrixX3f& V, const WindingNumberTree& tree) {
+  const int Na = int(apparel_.size());
+  // Carry-over is exact only on a closed body, where a verdict changes only by meeting the surface.
+  const bool carry = closed_body_ && previous_.rows() == Na;
+  previous_.resize(Na, 3);
+  inside_.resize(size_t(Na));
+  const Eigen::Vector3f shift = tree.shift();
+  int carried = 0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : carried)
+  for (int k = 0; k < Na; ++k) {
+    const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+    if (carry && tree.stays_clear(p, (p - previous_.row(k).transpose() - shift).norm())) {
+      ++carried;
+    } else {
+      inside_[size_t(k)] = tree.inside(p);
+    }
+    previous_.row(k) = p.transpose();
+  }
+  return carried;
+}
+
+Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
+  Penetration p;
+  p.total = int(apparel_.size());
+  if (carried) *carried = 0;
+  if (apparel_.empty() || body_faces_.rows() == 0) return p;
+  AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
+            apparel_.size() + body_.size(), " vertices, found ", V.rows());
+  const WindingNumberTree& tree = posed_body(V);
+  const int c = classify(V, tree);
+  if (carried) *carried = c;
+  std::vector<float> depth(apparel_.size(), 0.0f);
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int k = 0; k < int(apparel_.size()); ++k) {
+    if (inside_[size_t(k)]) depth[size_t(k)] = tree.distance(V.row(apparel_[size_t(k)]).transpose());
+  }
+  for (size_t k = 0; k < depth.size(); ++k) {  // summed in order: the same total on any thread count
+    if (inside_[k]) ++p.inside, p.depth_sum_cm += 100.0 * double(depth[k]);
+  }
+  return p;
+}
+
+PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
+  PenetrationReport report;
+  const int Na = int(apparel_.size());
+  report.before.total = report.after.total = Na;
+  if (Na == 0 || body_faces_.rows() == 0) return report;
+  AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
+            apparel_.size() + body_.size(), " vertices, found ", V.rows());
+  const WindingNumberTree& tree = posed_body(V);
+  report.carried = classify(V, tree);
+  // Push: every inside vertex to its closest body point plus the margin along the way out.
+  std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
+  std::vector<float> depth(size_t(Na), 0.0f);
+  const std::vector<uint8_t>& inside = inside_;
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int k = 0; k < Na; ++k) {
+    if (!inside[size_t(k)]) continue;
+    const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+    Eigen::Vector3f closest;
+    const float d = tree.distance(p, &closest);
+    depth[size_t(k)] = d;
+    if (d > 1e-9f) {
+      push[size_t(k)] = (closest - p) * ((d + options_.margin) / d);
+    }
+  }
+  for (int k = 0; k < Na; ++k) {
+    if (!inside[size_t(k)]) continue;
+    ++report.before.inside;
+    report.before.depth_sum_cm += 100.0 * double(depth[size_t(k)]);
+    ++report.pushed;
+  }
+  if (report.pushed == 0) {
+    report.after = report.before;
+    return report;
+  }
+  // Spread: ring r around the pushed vertices takes falloff^r of the mean push of its pushed-or-spread
+  // neighbours of the previous rings (pushed vertices keep their full push).
+  std::vector<int> ring(size_t(Na), -1);
+  std::vector<int> frontier;
+  for (int k = 0; k < Na; ++k) {
+    if (inside[size_t(k)]) ring[size_t(k)] = 0, frontier.push_back(k);
+  }
+  for (int r = 1; r <= options_.smoothing_rings && !frontier.empty(); ++r) {
+    std::vector<int> next;
+    for (int k : frontier) {
+      for (int n = apparel_adjacency_.offsets[size_t(k)]; n < apparel_adjacency_.offsets[size_t(k) + 1]; ++n) {
+        const int m = apparel_adjacency_.neighbors[size_t(n)];
+        if (ring[size_t(m)] < 0) ring[size_t(m)] = r, next.push_back(m);
+      }
+    }
+    std::sort(next.begin(), next.end());
+    for (int m : next) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      int count = 0;
+      for (int n = apparel_adjacency_.offsets[size_t(m)]; n < apparel_adjacency_.offsets[size_t(m) + 1]; ++n) {
+        const int q = apparel_adjacency_.neighbors[size_t(n)];
+        if (ring[size_t(q)] >= 0 && ring[size_t(q)] < r) sum += push[size_t(q)], ++count;
+      }
+      if (count > 0) push[size_t(m)] = options_.falloff * sum / float(count);
+    }
+    report.smoothed += int(next.size());
+    frontier = std::move(next);
+  }
+  // Apply, then re-test the moved vertices (the others keep their verdict: outside).
+  std::vector<int> moved;
+  for (int k = 0; k < Na; ++k) {
+    if (ring[size_t(k)] >= 0) {
+      V.row(apparel_[size_t(k)]) += push[size_t(k)].transpose();
+      moved.push_back(k);
+    }
+  }
+  std::vector<float> still(moved.size(), -1.0f);
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int m = 0; m < int(moved.size()); ++m) {
+    const Eigen::Vector3f p = V.row(apparel_[size_t(moved[size_t(m)])]).transpose();
+    if (tree.inside(p)) still[size_t(m)] = tree.distance(p);
+  }
+  for (float d : still) {
+    if (d >= 0) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(d);
+  }
+  return report;
+}
+
+}  // namespace amt

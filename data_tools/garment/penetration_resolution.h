@@ -1,0 +1,102 @@
+#pragma once
+// Penetration resolution, the post-process of the runtime (issue 6, item 5) and of cloth retargeting
+// (issue 13): apparel vertices found inside the body are pushed out along the body surface normal by
+// their depth plus a small margin, as in the cloth-retargeting paper (papers/cloth_motion_retargeting.md,
+// section 3.2: "moving the penetrating cloth vertices in the direction of the normal vectors ... by the
+// extent of the penetrations"); the push is then spread to the untouched apparel neighbours with a decaying
+// weight, so that a pushed vertex does not become a spike in its garment.
+//
+// Inside test: the generalized winding number (data_tools/geometry/winding_number.h) against the body part,
+// the faces whose three vertices are body vertices, posed as in the frame, with the holes left where
+// apparel was cut away (or where the segmenter took body vertices for apparel) closed by fans to the
+// mean of each hole's boundary (data_tools/geometry/mesh.h fill_holes): a closed surface, whose winding number
+// is an integer off it. The direction out is from the vertex to its closest body point: for a
+// closest point inside a triangle this is the triangle's normal, and it stays correct at edges and
+// corners where face normals disagree.
+//
+// Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
+// refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
+// rebuilt: the body's faces do not change between frames, only its positions. And since that surface
+// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when
+// neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear): the verdict
+// is then exactly what the query would say, and most vertices away from the skin skip it.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/metrics.h"
+#include "data_tools/geometry/types.h"
+#include "data_tools/geometry/winding_number.h"
+
+namespace amt {
+
+/// Choices of the resolution.
+///   margin          distance outside the body surface a pushed vertex ends at, metres
+///   smoothing_rings rings of apparel neighbours around a pushed vertex that follow it, each ring
+///                   with `falloff` times the previous ring's share of the push (0: no smoothing)
+struct PenetrationOptions {
+  float margin = 0.003f;
+  int smoothing_rings = 2;
+  float falloff = 0.5f;
+};
+
+/// What a frame's resolution did.
+///   before, after   apparel vertices inside the body before and after (data_tools/geometry/metrics.h)
+///   pushed          vertices moved out of the body; smoothed: neighbours moved with them
+///   carried         apparel vertices whose inside verdict carried over from the previous frame
+///                   (no winding-number query; see the file comment)
+struct PenetrationReport {
+  Penetration before, after;
+  int pushed = 0, smoothed = 0, carried = 0;
+};
+
+/// Resolves the penetration of a character's apparel into its body, frame after frame. Built once per
+/// character from its faces and apparel mask; resolve() is then called with each posed frame. It keeps
+/// the body's winding-number tree between calls (refitted to each frame), so one resolver serves one
+/// frame at a time: do not call measure() or resolve() of the same resolver from two threads at once.
+class PenetrationResolver {
+ public:
+  /// F #F by 3 faces; apparel_mask #V entries (1 = apparel). A character without apparel or without
+  /// a closed body part (no face with three body vertices) is accepted: resolve() then does nothing.
+  PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask, PenetrationOptions options = {});
+
+  /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
+  /// `carried`, when given, receives the number of verdicts carried over from the previous call.
+  Penetration measure(const MatrixX3f& V, int* carried = nullptr);
+
+  /// Pushes the penetrating apparel vertices of V (#V by 3, metres) out, in place, and reports the
+  /// penetration before and after. Deterministic; the queries run on the OpenMP threads.
+  PenetrationReport resolve(MatrixX3f& V);
+
+  /// Apparel and body vertex counts; faces of the closed body part.
+  int num_apparel() const { return int(apparel_.size()); }
+  int num_body() const { return int(body_.size()); }
+  int num_body_faces() const { return int(body_faces_.rows()); }
+  /// Whether the body surface tested against is closed (holes filled), so that verdicts may carry
+  /// over between frames; and the number of holes filled.
+  bool closed_body() const { return closed_body_; }
+  int num_filled_holes() const { return int(holes_.size()); }
+
+ private:
+  // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
+  const WindingNumberTree& posed_body(const MatrixX3f& V);
+
+  // Inside verdicts of V's apparel vertices into inside_ (by apparel position), with the tree posed
+  // as in V; returns how many carried over from the previous call.
+  int classify(const MatrixX3f& V, const WindingNumberTree& tree);
+
+  PenetrationOptions options_;
+  std::vector<int32_t> apparel_, body_;  // vertex ids of each part, ascending
+  MatrixX3i body_faces_;                 // faces with three body vertices, renumbered into body_, then
+                                         // the fans closing the holes (centre of hole h: body_.size() + h)
+  std::vector<std::vector<int32_t>> holes_;  // boundary vertices of each hole, positions in body_
+  Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
+  std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
+  MatrixX3f body_scratch_;               // body positions of the last call
+  bool closed_body_ = false;             // is_closed_surface(body_faces_): false only without body faces
+  MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)
+  std::vector<uint8_t> inside_;          // their verdicts
+};
+
+}  // namespace amt

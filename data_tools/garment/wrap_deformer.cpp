@@ -1,0 +1,191 @@
+#include "data_tools/garment/wrap_deformer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <nanoflann.hpp>
+#include <numeric>
+
+#include "data_tools/geometry/error.h"
+
+namespace amt {
+namespace {
+
+// nanoflann adaptor over the centroids of the registrable faces.
+struct CentroidCloud {
+  const MatrixX3f& C;
+  size_t kdtree_get_point_count() const { return static_cast<size_t>(C.rows()); }
+  float kdtree_get_pt(size_t index, size_t dim) const {
+    return C(static_cast<Eigen::Index>(index), static_cast<Eigen::Index>(dim));
+  }
+  template <class BoundingBox>
+  bool kdtree_get_bbox(BoundingBox&) const {
+    return false;
+  }
+};
+using CentroidTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CentroidCloud>, CentroidCloud, 3, uint32_t>;
+
+void check_rows_finite(const MatrixX3f& P, const char* source, const char* field) {
+  for (Eigen::Index i = 0; i < P.rows(); ++i) {
+    AMT_CHECK(P.row(i).allFinite(), source, ": ", field, ": expected finite values, found ", P(i, 0), " ", P(i, 1), " ",
+              P(i, 2), " at row ", i);
+  }
+}
+
+}  // namespace
+
+float point_triangle_distance2(const Eigen::Vector3f& p, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                               const Eigen::Vector3f& c) {
+  // The closest point by Voronoi region (Ericson 2005, section 5.1.5).
+  const Eigen::Vector3f ab = b - a, ac = c - a, ap = p - a;
+  const float d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+  const Eigen::Vector3f bp = p - b;
+  const float d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+  const float vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (ap - (d1 / (d1 - d3)) * ab).squaredNorm();
+  const Eigen::Vector3f cp = p - c;
+  const float d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+  const float vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (ap - (d2 / (d2 - d6)) * ac).squaredNorm();
+  const float va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return (bp - w * (c - b)).squaredNorm();
+  }
+  const float denominator = 1.0f / (va + vb + vc);
+  const float v = vb * denominator, w = vc * denominator;
+  return (ap - ab * v - ac * w).squaredNorm();
+}
+
+bool face_frame(const MatrixX3f& V, const MatrixX3i& F, int64_t f, Eigen::Matrix3f& R, Eigen::Vector3f& centroid) {
+  const Eigen::Vector3f a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(), c = V.row(F(f, 2)).transpose();
+  centroid = (a + b + c) / 3.0f;
+  const Eigen::Vector3f normal = (b - a).cross(c - a);
+  const float edge = (b - a).norm(), area2 = normal.norm();
+  // Zero area relative to the edge: no normal to speak of.
+  if (!(edge > 0) || !(area2 > 1e-12f * std::max(edge * edge, 1e-30f))) {
+    R.setIdentity();
+    return false;
+  }
+  const Eigen::Vector3f e1 = (b - a) / edge, n = normal / area2;
+  R.row(0) = e1.transpose();
+  R.row(1) = n.cross(e1).transpose();
+  R.row(2) = n.transpose();
+  return true;
+}
+
+WrapBinding wrap_register(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& points, const WrapOptions& options,
+                          const char* source) {
+  AMT_CHECK(options.faces >= 1, source, ": faces: expected >= 1, found ", options.faces);
+  AMT_CHECK(options.candidates >= options.faces, source, ": candidates: expected >= faces (", options.faces,
+            "), found ", options.candidates);
+  AMT_CHECK(std::isfinite(options.min_plane_distance) && options.min_plane_distance > 0, source,
+            ": min_plane_distance: expected a distance > 0, found ", options.min_plane_distance);
+  check_rows_finite(V, source, "deformer vertices");
+  check_rows_finite(points, source, "points");
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int j = 0; j < 3; ++j) {
+      AMT_CHECK(F(f, j) >= 0 && F(f, j) < V.rows(), source, ": deformer face ", f, ": expected vertex indices in [0, ",
+                V.rows(), "), found ", F(f, j));
+    }
+  }
+  // The faces that have a frame, and their centroids.
+  std::vector<int32_t> usable;
+  std::vector<Eigen::Matrix3f> frames;
+  std::vector<Eigen::Vector3f> centres;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    Eigen::Matrix3f R;
+    Eigen::Vector3f c;
+    if (!face_frame(V, F, f, R, c)) continue;
+    usable.push_back(static_cast<int32_t>(f));
+    frames.push_back(R);
+    centres.push_back(c);
+  }
+  AMT_CHECK(!usable.empty(), source, ": deformer: expected at least one face of non-zero area, found none (",
+            F.rows(), " faces)");
+  const int k = std::min<int>(options.faces, static_cast<int>(usable.size()));
+  const int candidates = std::min<int>(options.candidates, static_cast<int>(usable.size()));
+  MatrixX3f C(static_cast<Eigen::Index>(usable.size()), 3);
+  for (size_t u = 0; u < usable.size(); ++u) C.row(static_cast<Eigen::Index>(u)) = centres[u].transpose();
+  const CentroidCloud cloud{C};
+  const CentroidTree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));  // built here
+
+  WrapBinding binding;
+  binding.k = k;
+  const Eigen::Index N = points.rows();
+  binding.face.resize(N, k);
+  binding.weight.resize(N, k);
+  binding.local.resize(N * k, 3);
+  binding.rest_offset.resize(N * k, 3);
+  std::vector<uint32_t> nearest(static_cast<size_t>(candidates));
+  std::vector<float> centroid_d2(static_cast<size_t>(candidates));
+  std::vector<std::pair<float, uint32_t>> ranked;
+  for (Eigen::Index i = 0; i < N; ++i) {
+    const Eigen::Vector3f p = points.row(i).transpose();
+    const size_t found = tree.knnSearch(p.data(), static_cast<size_t>(candidates), nearest.data(), centroid_d2.data());
+    ranked.clear();
+    for (size_t q = 0; q < found; ++q) {
+      const int32_t f = usable[nearest[q]];
+      const float d2 = point_triangle_distance2(p, V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(),
+                                                V.row(F(f, 2)).transpose());
+      ranked.emplace_back(d2, nearest[q]);
+    }
+    // Nearest first; ties by face index, so the binding does not depend on the tree's order.
+    std::sort(ranked.begin(), ranked.end(), [&](const auto& x, const auto& y) {
+      return x.first != y.first ? x.first < y.first : usable[x.second] < usable[y.second];
+    });
+    float total = 0;
+    for (int s = 0; s < k; ++s) {
+      const uint32_t u = ranked[static_cast<size_t>(s)].second;
+      const Eigen::Vector3f local = frames[u] * (p - centres[u]);
+      binding.face(i, s) = usable[u];
+      binding.local.row(i * k + s) = local.transpose();
+      binding.rest_offset.row(i * k + s) = (p - centres[u]).transpose();
+      // local.z() is the signed distance to the face's plane; ranked[s].first the squared distance to the face.
+      const float distance = options.triangle_distance_weights ? std::sqrt(ranked[size_t(s)].first) : std::abs(local.z());
+      const float w = 1.0f / std::max(distance, options.min_plane_distance);
+      binding.weight(i, s) = w;
+      total += w;
+    }
+    binding.weight.row(i) /= total;
+  }
+  return binding;
+}
+
+MatrixX3f wrap_deform(const WrapBinding& binding, const MatrixX3f& V_moved, const MatrixX3i& F) {
+  const Eigen::Index N = binding.num_points();
+  const int k = binding.k;
+  // The frames of the bound faces only, each once.
+  std::vector<int32_t> slot(static_cast<size_t>(F.rows()), -1);
+  std::vector<Eigen::Matrix3f> frames;
+  std::vector<Eigen::Vector3f> centres;
+  std::vector<bool> collapsed;
+  MatrixX3f out = MatrixX3f::Zero(N, 3);
+  for (Eigen::Index i = 0; i < N; ++i) {
+    Eigen::Vector3f p = Eigen::Vector3f::Zero();
+    for (int s = 0; s < k; ++s) {
+      const int32_t f = binding.face(i, s);
+      AMT_CHECK(f >= 0 && f < F.rows(), "wrap deformer: binding: expected faces in [0, ", F.rows(), "), found ", f);
+      if (slot[static_cast<size_t>(f)] < 0) {
+        Eigen::Matrix3f R;
+        Eigen::Vector3f c;
+        collapsed.push_back(!face_frame(V_moved, F, f, R, c));
+        slot[static_cast<size_t>(f)] = static_cast<int32_t>(frames.size());
+        frames.push_back(R);
+        centres.push_back(c);
+      }
+      const auto u = static_cast<size_t>(slot[static_cast<size_t>(f)]);
+      const Eigen::Vector3f offset = collapsed[u] ? Eigen::Vector3f(binding.rest_offset.row(i * k + s).transpose())
+                                                  : Eigen::Vector3f(frames[u].transpose() *
+                                                                    binding.local.row(i * k + s).transpose());
+      p += binding.weight(i, s) * (centres[u] + offset);
+    }
+    out.row(i) = p.transpose();
+  }
+  return out;
+}
+
+}  // namespace amt

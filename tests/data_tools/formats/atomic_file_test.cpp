@@ -1,0 +1,59 @@
+// Atomic writes: the target changes only when the whole file is written, folders are created.
+#include "data_tools/formats/atomic_file.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "data_tools/geometry/error.h"
+
+namespace amt {
+namespace {
+
+std::string read_all(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST(AtomicFile, WritesThroughATemporaryAndCreatesFolders) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("amt_atomic_" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string path = (dir / "a" / "b" / "out.txt").string();
+  EXPECT_EQ(temporary_path(path), path + ".tmp");
+  write_file_atomically(path, "first");
+  EXPECT_EQ(read_all(path), "first");
+  write_file_atomically(path, "second");
+  EXPECT_EQ(read_all(path), "second");
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(AtomicFile, FailuresKeepTheGoodFileAndNameThePath) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("amt_atomic_bad_" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "blocker") << "a file where a folder should be";
+  const std::string blocked = (dir / "blocker" / "out.txt").string();
+  try {
+    write_file_atomically(blocked, "x");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(blocked + ": folder: expected to create", 0), 0u) << e.what();
+  }
+  // A rename onto a folder fails: the temporary is removed, the folder untouched.
+  const std::string good = (dir / "good").string();
+  std::filesystem::create_directories(good + "/inside");
+  std::ofstream(good + ".tmp") << "new";
+  EXPECT_THROW(replace_with_temporary(good + ".tmp", good), Error);
+  EXPECT_FALSE(std::filesystem::exists(good + ".tmp"));
+  EXPECT_TRUE(std::filesystem::is_directory(good + "/inside"));
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace amt

@@ -1,0 +1,212 @@
+// Penetration resolution on a constructed case: a flat sheet (apparel) cut through a closed sphere
+// (body). Every sheet vertex inside the sphere must end outside it, at the surface plus the margin.
+#include "data_tools/garment/penetration_resolution.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/shapes.h"
+#include "data_tools/geometry/winding_number.h"
+
+namespace amt {
+namespace {
+
+struct SheetThroughSphere {
+  TriMesh mesh;
+  std::vector<uint8_t> mask;
+  int body_vertices = 0;
+};
+
+// Sphere of radius 0.3 at the origin (body), then a 21 x 21 sheet of 1.2 m in the plane z = 0.1
+// centred on the origin (apparel): the sheet's middle is inside the sphere.
+SheetThroughSphere sheet_through_sphere() {
+  SheetThroughSphere c;
+  const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 32, 16);
+  TriMesh sheet = grid(21, 21, 0.06f);
+  sheet.V.rowwise() += Eigen::RowVector3f(-0.6f, -0.6f, 0.1f);
+  c.mesh = merge_meshes({sphere, sheet});
+  c.body_vertices = sphere.num_vertices();
+  c.mask.assign(size_t(c.mesh.num_vertices()), 0);
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) c.mask[size_t(i)] = 1;
+  return c;
+}
+
+TEST(PenetrationResolver, PushesASheetOutOfASphere) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationOptions options;
+  options.margin = 0.005f;
+  PenetrationResolver resolver(c.mesh.F, c.mask, options);
+  EXPECT_EQ(resolver.num_apparel(), 441);
+  EXPECT_EQ(resolver.num_body_faces(), c.mesh.num_faces() - 800);
+  MatrixX3f V = c.mesh.V;
+  const Penetration before = resolver.measure(V);
+  // Sheet points with x^2 + y^2 < 0.3^2 - 0.1^2 = 0.08 are inside: on the 0.06 grid that is 69 points
+  // (counted by hand over |i|, |j| <= 4 with 0.0036 (i^2 + j^2) < 0.08, i.e. i^2 + j^2 <= 22).
+  EXPECT_EQ(before.inside, 69);
+  EXPECT_EQ(before.total, 441);
+  const PenetrationReport report = resolver.resolve(V);
+  EXPECT_EQ(report.before.inside, 69);
+  EXPECT_EQ(report.pushed, 69);
+  EXPECT_GT(report.smoothed, 0);
+  EXPECT_EQ(report.after.inside, 0);
+  EXPECT_EQ(resolver.measure(V).inside, 0);
+  // Pushed vertices sit at the sphere's surface plus the margin (the 32 x 16 polygonal sphere is within
+  // 6 mm of the round one); the body did not move; far sheet vertices did not move.
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) {
+    const float r0 = c.mesh.V.row(i).norm(), r1 = V.row(i).norm();
+    if (r0 < 0.3f - 0.003f) {
+      EXPECT_NEAR(r1, 0.3f + options.margin, 0.007f) << "vertex " << i;
+    }
+    if (r0 > 0.45f) {
+      EXPECT_EQ(V.row(i), c.mesh.V.row(i)) << "vertex " << i;
+    }
+  }
+  EXPECT_EQ(V.topRows(c.body_vertices), c.mesh.V.topRows(c.body_vertices));
+  // No spikes: no sheet edge grew beyond the push depth plus one grid spacing.
+  const MatrixX2i E = unique_edges(c.mesh.F);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    if (E(e, 0) < c.body_vertices) continue;
+    EXPECT_LT((V.row(E(e, 0)) - V.row(E(e, 1))).norm(), 0.06f * 1.4143f + 0.3f) << "edge " << e;
+  }
+}
+
+TEST(PenetrationResolver, SmoothingMovesTheFirstRingByHalfThePush) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationOptions options;
+  options.smoothing_rings = 1;
+  options.falloff = 0.5f;
+  PenetrationResolver resolver(c.mesh.F, c.mask, options);
+  MatrixX3f V = c.mesh.V;
+  const PenetrationReport report = resolver.resolve(V);
+  EXPECT_EQ(report.after.inside, 0);
+  // Sheet vertex (i, j) = (15, 10) is outside (5^2 + 0^2 = 25 > 22); its inside neighbours are (14, 10)
+  // and (14, 9) (16 and 17 <= 22), so it moves by half (the falloff) the mean of their pushes. A pushed
+  // vertex moves by its push alone, so the pushes are the inside neighbours' displacements.
+  const int ring = c.body_vertices + 10 * 21 + 15, inner = c.body_vertices + 10 * 21 + 14;
+  const int inner_below = c.body_vertices + 9 * 21 + 14;
+  std::vector<int> inside_neighbors;
+  const MatrixX2i E = unique_edges(c.mesh.F);
+  for (Eigen::Index e = 0; e < E.rows(); ++e) {
+    for (int side = 0; side < 2; ++side) {
+      const int q = E(e, 1 - side);
+      if (E(e, side) == ring && c.mesh.V.row(q).norm() < 0.3f) inside_neighbors.push_back(q);
+    }
+  }
+  std::sort(inside_neighbors.begin(), inside_neighbors.end());
+  ASSERT_EQ(inside_neighbors, (std::vector<int>{inner_below, inner}));
+  const Eigen::RowVector3f push_inner = V.row(inner) - c.mesh.V.row(inner);
+  const Eigen::RowVector3f push_below = V.row(inner_below) - c.mesh.V.row(inner_below);
+  const Eigen::RowVector3f moved = V.row(ring) - c.mesh.V.row(ring);
+  const Eigen::RowVector3f half_mean = 0.5f * (push_inner + push_below) / 2.0f;
+  EXPECT_GT(half_mean.norm(), 0.01f);  // the pushes are centimetres: "half" is measurable
+  EXPECT_LT((moved - half_mean).norm(), 1e-6f) << "moved " << moved << ", half the mean push " << half_mean;
+  // Ring 2 does not move with one ring of smoothing.
+  const int far = c.body_vertices + 10 * 21 + 16;
+  EXPECT_EQ(V.row(far), c.mesh.V.row(far));
+}
+
+// One resolver over frames whose body moves (its tree refitted per frame) gives what a fresh resolver
+// (a tree built on that frame) gives.
+TEST(PenetrationResolver, FollowsAMovingBodyAcrossFrames) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationResolver resolver(c.mesh.F, c.mask);
+  for (int frame = 0; frame < 4; ++frame) {
+    MatrixX3f V = c.mesh.V;
+    const Eigen::RowVector3f shift(0.02f * float(frame), -0.01f * float(frame), 0.03f * float(frame));
+    const float stretch = 1.0f + 0.1f * float(frame);
+    for (int i = 0; i < c.body_vertices; ++i) V.row(i) = Eigen::RowVector3f(stretch * V(i, 0), V(i, 1), V(i, 2)) + shift;
+    PenetrationResolver fresh(c.mesh.F, c.mask);
+    const Penetration expected = fresh.measure(V);
+    EXPECT_GT(expected.inside, 40) << "frame " << frame;
+    EXPECT_EQ(resolver.measure(V).inside, expected.inside) << "frame " << frame;
+    MatrixX3f V_fresh = V;
+    const PenetrationReport want = fresh.resolve(V_fresh);
+    const PenetrationReport got = resolver.resolve(V);
+    EXPECT_EQ(got.before.inside, want.before.inside) << "frame " << frame;
+    EXPECT_EQ(got.pushed, want.pushed) << "frame " << frame;
+    EXPECT_EQ(got.after.inside, 0) << "frame " << frame;
+    EXPECT_LT((V - V_fresh).cwiseAbs().maxCoeff(), 1e-5f) << "frame " << frame;
+  }
+}
+
+// Verdicts carried over between frames (the body is closed) are those of a fresh tree on every frame,
+// while the sheet sweeps through the moving sphere so that its vertices enter and leave it; the far
+// part of the sheet carries its verdicts, the part near the sphere is tested again.
+TEST(PenetrationResolver, CarriedVerdictsEqualFreshOnesWhileASheetSweepsThroughTheBody) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationResolver resolver(c.mesh.F, c.mask), resolving(c.mesh.F, c.mask);
+  ASSERT_TRUE(resolver.closed_body());
+  int carried_total = 0, entered = 0, left = 0, previous_inside = -1;
+  for (int frame = 0; frame < 40; ++frame) {
+    MatrixX3f V = c.mesh.V;
+    V.rowwise() += Eigen::RowVector3f(0.01f * float(frame), 0.0f, 0.0f);  // body and sheet drift together
+    for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) V(i, 2) += 0.3f - 0.02f * float(frame);  // sheet sinks
+    PenetrationResolver fresh(c.mesh.F, c.mask);
+    const Penetration expected = fresh.measure(V);
+    int carried = 0;
+    const Penetration got = resolver.measure(V, &carried);
+    EXPECT_EQ(got.inside, expected.inside) << "frame " << frame;
+    EXPECT_NEAR(got.depth_sum_cm, expected.depth_sum_cm, 1e-3) << "frame " << frame;
+    MatrixX3f V_resolved = V;
+    const PenetrationReport report = resolving.resolve(V_resolved);
+    EXPECT_EQ(report.before.inside, expected.inside) << "frame " << frame;
+    EXPECT_EQ(report.after.inside, 0) << "frame " << frame;
+    EXPECT_EQ(report.carried, carried) << "frame " << frame;
+    carried_total += carried;
+    if (frame == 0) {
+      EXPECT_EQ(carried, 0);
+    }
+    if (previous_inside >= 0) entered += expected.inside > previous_inside, left += expected.inside < previous_inside;
+    previous_inside = expected.inside;
+  }
+  // The sheet crosses the whole sphere (z from 0.4 to -0.38): vertices enter, then leave.
+  EXPECT_GT(entered, 3);
+  EXPECT_GT(left, 3);
+  EXPECT_GT(carried_total, 39 * 441 / 2);
+  EXPECT_LT(carried_total, 39 * 441);
+}
+
+// An open body (the lower half of the sphere, a bowl) is closed by a fan over its rim: inside means
+// inside the half ball. A sheet at z = -0.1 then has as many vertices inside as the whole sphere has at
+// z = +0.1 (69, see above), one at z = +0.1 none; verdicts carry over as on a closed body.
+TEST(PenetrationResolver, FillsTheHolesOfAnOpenBody) {
+  SheetThroughSphere c = sheet_through_sphere();
+  std::vector<Eigen::Vector3i> kept;
+  for (Eigen::Index f = 0; f < c.mesh.F.rows(); ++f) {
+    const bool body = c.mesh.F(f, 0) < c.body_vertices;
+    const float z = (c.mesh.V.row(c.mesh.F(f, 0)) + c.mesh.V.row(c.mesh.F(f, 1)) + c.mesh.V.row(c.mesh.F(f, 2)))(2) / 3.0f;
+    if (!body || z < 0.0f) kept.push_back(c.mesh.F.row(f).transpose());
+  }
+  MatrixX3i F(Eigen::Index(kept.size()), 3);
+  for (size_t f = 0; f < kept.size(); ++f) F.row(Eigen::Index(f)) = kept[f].transpose();
+  PenetrationResolver resolver(F, c.mask);
+  EXPECT_TRUE(resolver.closed_body());
+  EXPECT_EQ(resolver.num_filled_holes(), 1);
+  MatrixX3f below = c.mesh.V;
+  for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i) below(i, 2) -= 0.2f;
+  EXPECT_EQ(resolver.measure(c.mesh.V).inside, 0);
+  int carried = -1;
+  EXPECT_EQ(resolver.measure(below, &carried).inside, 69);
+  EXPECT_LE(carried, 441 - 69);  // the 69 that went inside were tested again
+  EXPECT_GT(carried, 100);       // the sheet's far corners were not
+  EXPECT_EQ(resolver.measure(below, &carried).inside, 69);
+  EXPECT_EQ(carried, 441);  // nothing moved
+  PenetrationResolver unfilled_sphere(c.mesh.F, c.mask);
+  EXPECT_EQ(unfilled_sphere.num_filled_holes(), 0);
+}
+
+TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
+  const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 8, 6);
+  PenetrationResolver body_only(sphere.F, std::vector<uint8_t>(size_t(sphere.num_vertices()), 0));
+  MatrixX3f V = sphere.V;
+  EXPECT_EQ(body_only.resolve(V).after.inside, 0);
+  PenetrationResolver apparel_only(sphere.F, std::vector<uint8_t>(size_t(sphere.num_vertices()), 1));
+  EXPECT_EQ(apparel_only.resolve(V).pushed, 0);
+  EXPECT_EQ(V, sphere.V);
+}
+
+}  // namespace
+}  // namespace amt
