@@ -105,8 +105,8 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   }
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
-  motion_.assign(nodes_.size(), std::numeric_limits<float>::infinity());
   compact();
+  for (QueryNode& q : query_nodes_) q.motion = std::numeric_limits<float>::infinity();  // no refit yet
 }
 
 // Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
@@ -163,7 +163,6 @@ void WindingNumberTree::compact() {
     }
     q.w = w.cast<float>();
     for (int k = 0; k < 10; ++k) q.cubic[k] = float(cubic[k]);
-    q.motion = motion_[size_t(n)];
     q.left = node.left, q.right = node.right, q.first = node.first, q.count = node.count;
   }
 }
@@ -292,6 +291,8 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
 }
 
 double WindingNumberTree::winding_number(const Eigen::Vector3f& q) const {
+  AMT_CHECK(far_field_current_, "WindingNumberTree::winding_number: expected the far field of the last refit, "
+            "found it not yet updated (call update_far_field() after refit(V, false))");
   double omega = 0;  // total solid angle
   int32_t stack[kMaxStack];
   int top = 0;
@@ -365,20 +366,23 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   return static_cast<float>(std::sqrt(best2));
 }
 
-void WindingNumberTree::refit(const MatrixX3f& V) {
+void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());
   AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the vertex displacements, in double: #V terms
   for (Eigen::Index i = 0; i < V.rows(); ++i) sum += (V.row(i) - vertices_.row(i)).transpose().cast<double>();
   shift_ = V.rows() > 0 ? Eigen::Vector3f((sum / double(V.rows())).cast<float>()) : Eigen::Vector3f::Zero();
-  const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
-  // Leaves own disjoint triangle ranges: refresh their corners and fit them in parallel.
+  // What stays_clear() and distance() read is refitted on the query nodes alone (boxes, motions); the
+  // full nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
+  // refresh their corners, boxes and motions in parallel.
+  const int32_t num_nodes = static_cast<int32_t>(query_nodes_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
-    Node& node = nodes_[n];
+    QueryNode& node = query_nodes_[size_t(n)];
     if (!node.is_leaf()) continue;
     float motion2 = 0;  // the corners' displacements from their stored (previous) positions
+    node.box.setEmpty();
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
       Triangle& tri = triangles_[size_t(t)];
       const Eigen::Vector3f a = V.row(faces_(tri.face, 0)).transpose(), b = V.row(faces_(tri.face, 1)).transpose(),
@@ -386,18 +390,35 @@ void WindingNumberTree::refit(const MatrixX3f& V) {
       motion2 = std::max({motion2, (a - tri.a - shift_).squaredNorm(), (b - tri.b - shift_).squaredNorm(),
                           (c - tri.c - shift_).squaredNorm()});
       tri.a = a, tri.b = b, tri.c = c;
+      node.box.extend(a).extend(b).extend(c);
     }
-    motion_[size_t(n)] = std::sqrt(motion2) * (1.0f + 1e-6f);
-    fit(node);
+    node.motion = std::sqrt(motion2) * (1.0f + 1e-6f);
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
-    if (nodes_[n].is_leaf()) continue;
-    merge_children(n);
-    motion_[size_t(n)] = std::max(motion_[size_t(nodes_[n].left)], motion_[size_t(nodes_[n].right)]);
+    QueryNode& node = query_nodes_[size_t(n)];
+    if (node.is_leaf()) continue;
+    const QueryNode &left = query_nodes_[size_t(node.left)], &right = query_nodes_[size_t(node.right)];
+    node.box = left.box.merged(right.box);
+    node.motion = std::max(left.motion, right.motion);
   }
   vertices_ = V;
+  far_field_current_ = false;
+  if (far_field) update_far_field();
+}
+
+void WindingNumberTree::update_far_field() {
+  if (far_field_current_) return;
+  const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
+#pragma omp parallel for schedule(dynamic, 32)
+  for (int32_t n = 0; n < num_nodes; ++n) {
+    if (nodes_[n].is_leaf()) fit(nodes_[n]);
+  }
+  for (int32_t n = num_nodes - 1; n >= 0; --n) {
+    if (!nodes_[n].is_leaf()) merge_children(n);
+  }
   compact();
+  far_field_current_ = true;
 }
 
 bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion) const {
@@ -427,6 +448,8 @@ bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion
 }
 
 Eigen::VectorXd WindingNumberTree::winding_numbers(const MatrixX3f& P) const {
+  AMT_CHECK(far_field_current_, "WindingNumberTree::winding_numbers: expected the far field of the last refit, "
+            "found it not yet updated (call update_far_field() after refit(V, false))");
   Eigen::VectorXd w(P.rows());
 #pragma omp parallel for schedule(dynamic, 64)
   for (Eigen::Index i = 0; i < P.rows(); ++i) w[i] = winding_number(P.row(i).transpose());

@@ -70,7 +70,20 @@ class WindingNumberTree {
   /// Throws amt::Error on a row count other than the construction's or on non-finite positions.
   ///
   /// A refit also records how far the surface moved since the previous positions, for stays_clear().
-  void refit(const MatrixX3f& V);
+  ///
+  /// With far_field false only the triangles, boxes and motions are refitted: distance() and
+  /// stays_clear() are then exact for V, while winding_number() and inside() throw until
+  /// update_far_field() has brought the expansions up to date (most of a refit's cost, which a caller
+  /// whose points all keep their verdicts through stays_clear() never pays).
+  void refit(const MatrixX3f& V, bool far_field = true);
+
+  /// Refits the expansions to the positions of the last refit (nothing when they are current): after
+  /// it the tree is what refit(V) would have made of it.
+  void update_far_field();
+
+  /// Whether the expansions are those of the current positions (false after refit(V, false) until
+  /// update_far_field()).
+  bool far_field_current() const { return far_field_current_; }
 
   /// Mean displacement of the surface's vertices in the last refit (zero after a build).
   const Eigen::Vector3f& shift() const { return shift_; }
@@ -147,13 +160,13 @@ class WindingNumberTree {
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
   void merge_children(int32_t index);
 
-  // Rewrites query_nodes_ from nodes_ (after a build or a refit).
+  // Rewrites query_nodes_ from nodes_ (after a build or a refit), all but their motions.
   void compact();
 
   MatrixX3i faces_;     // the construction's F, for refit
   MatrixX3f vertices_;  // positions of the last build or refit, for the displacements of the next
   Eigen::Vector3f shift_ = Eigen::Vector3f::Zero();
-  std::vector<float> motion_;  // per node: largest corner displacement relative to shift_ (inf: none yet)
+  bool far_field_current_ = true;  // false between refit(V, false) and update_far_field()
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
   std::vector<QueryNode> query_nodes_;  // nodes_ as the queries read them, same indices

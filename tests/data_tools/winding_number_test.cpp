@@ -11,13 +11,17 @@
 #include <random>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "data_tools/error.h"
 #include "data_tools/mesh.h"
 #include "data_tools/shapes.h"
+#include "tests/test_support.h"
 
 namespace amt {
 namespace {
+
+using test::error_of;
 
 // Reorders every triangle of a convex mesh so that its normal points away from `center`.
 void orient_outward(TriMesh& mesh, const Eigen::Vector3f& center) {
@@ -226,6 +230,43 @@ TEST(WindingNumberRefit, MatchesAFreshBuildOnTheMovedSurface) {
     EXPECT_NEAR(refitted.distance(p), rest.distance(p), 1e-6f);
   }
   EXPECT_THROW(refitted.refit(sphere.V.topRows(10)), Error);
+}
+
+// refit(V, false) moves the triangles and boxes only: distances and stays_clear answer for V at once,
+// winding numbers refuse until update_far_field(), which then leaves the tree as a full refit does.
+TEST(WindingNumberRefit, DeferredFarFieldEndsAsAFullRefit) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const TriMesh sphere = icosphere(3, 0.6f, center);
+  MatrixX3f moved = sphere.V;
+  for (Eigen::Index i = 0; i < moved.rows(); ++i) moved(i, 0) += 0.2f * moved(i, 1) * moved(i, 1) + 0.05f;
+  WindingNumberTree full(sphere.V, sphere.F), deferred(sphere.V, sphere.F);
+  full.refit(moved);
+  deferred.refit(moved, false);
+  EXPECT_TRUE(full.far_field_current());
+  EXPECT_FALSE(deferred.far_field_current());
+  EXPECT_EQ(deferred.shift(), full.shift());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> offset(-1.0f, 1.0f);
+  std::vector<Eigen::Vector3f> points;
+  for (int k = 0; k < 100; ++k) points.push_back(center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng)));
+  for (const Eigen::Vector3f& p : points) {
+    EXPECT_EQ(deferred.distance(p), full.distance(p));
+    EXPECT_EQ(deferred.stays_clear(p, 0.02f), full.stays_clear(p, 0.02f));
+  }
+  EXPECT_NE(error_of([&] { deferred.winding_number(points[0]); }).find("far field"), std::string::npos);
+  deferred.update_far_field();
+  EXPECT_TRUE(deferred.far_field_current());
+  for (const Eigen::Vector3f& p : points) EXPECT_EQ(deferred.winding_number(p), full.winding_number(p));
+  // Twice deferred, then brought up to date: still the full refit's tree.
+  deferred.refit(sphere.V, false);
+  deferred.refit(moved, false);
+  deferred.update_far_field();
+  full.refit(sphere.V);
+  full.refit(moved);
+  for (const Eigen::Vector3f& p : points) {
+    EXPECT_EQ(deferred.winding_number(p), full.winding_number(p));
+    EXPECT_EQ(deferred.stays_clear(p, 0.02f), full.stays_clear(p, 0.02f));
+  }
 }
 
 // The far field alone (a soup of 8 triangles, one leaf, seen from outside beta times its radius)
