@@ -4,6 +4,9 @@
 #include <chrono>
 #include <cmath>
 #include <utility>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 
 #include "data_tools/error.h"
 
@@ -109,23 +112,36 @@ ClothRetargeter::ClothRetargeter(const ClothCharacter& source, const ClothCharac
   target_ = make_side(target, target_apparel_, options.wrap);
   resolver_.emplace(target.mesh.F, target.apparel_mask, options.penetration);
   // The relaxation's edges: mesh edges with two apparel ends, by apparel position, and their rest lengths on
-  // the target.
+  // the target, listed at both ends.
   {
     std::vector<int32_t> apparel_position(target.apparel_mask.size(), -1);
     for (size_t k = 0; k < target_apparel_.size(); ++k) apparel_position[size_t(target_apparel_[k])] = int32_t(k);
     const MatrixX2i E = unique_edges(target.mesh.F);
-    std::vector<int> degree(target_apparel_.size(), 0);
+    const int N = int(target_apparel_.size()), chunks = (N + kRelaxLanes - 1) / kRelaxLanes;
+    std::vector<std::vector<std::pair<int32_t, float>>> edges(size_t(chunks * kRelaxLanes));
     for (Eigen::Index e = 0; e < E.rows(); ++e) {
       const int32_t a = apparel_position[size_t(E(e, 0))], b = apparel_position[size_t(E(e, 1))];
       if (a < 0 || b < 0) continue;
-      relaxation_.ends.push_back(a);
-      relaxation_.ends.push_back(b);
-      relaxation_.rest_length.push_back((target.mesh.V.row(E(e, 0)) - target.mesh.V.row(E(e, 1))).norm());
-      ++degree[size_t(a)], ++degree[size_t(b)];
+      const float rest = (target.mesh.V.row(E(e, 0)) - target.mesh.V.row(E(e, 1))).norm();
+      edges[size_t(a)].emplace_back(b, rest);
+      edges[size_t(b)].emplace_back(a, rest);
     }
-    relaxation_.inverse_degree.resize(degree.size());
-    for (size_t k = 0; k < degree.size(); ++k)
-      relaxation_.inverse_degree[k] = degree[k] > 0 ? 1.0f / float(degree[k]) : 0.0f;
+    Relaxation& r = relaxation_;
+    r.slot_begin.push_back(0);
+    for (int c = 0; c < chunks; ++c) {
+      size_t width = 0;
+      for (int l = 0; l < kRelaxLanes; ++l) width = std::max(width, edges[size_t(c * kRelaxLanes + l)].size());
+      for (size_t slot = 0; slot < width; ++slot) {
+        for (int l = 0; l < kRelaxLanes; ++l) {
+          const int32_t v = c * kRelaxLanes + l;
+          const auto& mine = edges[size_t(v)];
+          r.neighbour.push_back(slot < mine.size() ? mine[slot].first : v);
+          r.rest_length.push_back(slot < mine.size() ? mine[slot].second : 0.0f);
+        }
+      }
+      r.slot_begin.push_back(int32_t(r.neighbour.size()));
+    }
+    r.positions.assign(size_t(8 * chunks * kRelaxLanes), 0.0f);
   }
   // Per apparel vertex, the size of the target apparel around it relative to the source's: the total rest
   // length of its apparel edges on the target over that on the source.
@@ -209,53 +225,94 @@ ClothRetargetReport ClothRetargeter::retarget(const MatrixX3f& source_frame, Mat
   return report;
 }
 
-// Edge relaxation towards the target's rest lengths, Jacobi: every edge's correction from the same
-// positions, half to each end, each vertex moved by the mean of its edges' corrections. Flat arrays and no
-// allocation: this runs relax_iterations times over every apparel edge, per frame.
-void ClothRetargeter::relax(MatrixX3f& A) {
-  Relaxation& r = relaxation_;
-  float* P = A.data();  // row-major: x, y, z of vertex k at 3k
-  const int32_t* ends = r.ends.data();
-  const float* rest = r.rest_length.data();
-  const size_t num_edges = r.rest_length.size(), n3 = size_t(3 * A.rows());
-  r.move.resize(n3);
-  float* move = r.move.data();
-  for (int it = 0; it < options_.relax_iterations; ++it) {
-    std::fill(r.move.begin(), r.move.end(), 0.0f);
-    bool degenerate = false;  // an edge too short for a direction: it moves nothing and does not count
-    for (size_t e = 0; e < num_edges; ++e) {
-      float* a = move + 3 * ends[2 * e];
-      float* b = move + 3 * ends[2 * e + 1];
-      const float* pa = P + 3 * ends[2 * e];
-      const float* pb = P + 3 * ends[2 * e + 1];
-      const float x = pb[0] - pa[0], y = pb[1] - pa[1], z = pb[2] - pa[2];
-      const float length = std::sqrt(x * x + y * y + z * z);
-      if (!(length > 1e-9f)) {
-        degenerate = true;
-        continue;
-      }
-      const float c = 0.5f * (length - rest[e]) / length;
-      a[0] += c * x, a[1] += c * y, a[2] += c * z;
-      b[0] -= c * x, b[1] -= c * y, b[2] -= c * z;
-    }
-    if (!degenerate) {
-      for (size_t k = 0; k < n3 / 3; ++k) {
-        const float w = r.inverse_degree[k];
-        P[3 * k] += move[3 * k] * w, P[3 * k + 1] += move[3 * k + 1] * w, P[3 * k + 2] += move[3 * k + 2] * w;
-      }
-      continue;
-    }
-    // Rare: count each vertex's edges that had a direction.
-    std::vector<int> count(size_t(A.rows()), 0);
-    for (size_t e = 0; e < num_edges; ++e) {
-      const float* pa = P + 3 * ends[2 * e];
-      const float* pb = P + 3 * ends[2 * e + 1];
-      const float x = pb[0] - pa[0], y = pb[1] - pa[1], z = pb[2] - pa[2];
-      if (std::sqrt(x * x + y * y + z * z) > 1e-9f) ++count[size_t(ends[2 * e])], ++count[size_t(ends[2 * e + 1])];
-    }
-    for (size_t i = 0; i < n3; ++i)
-      if (count[i / 3] > 0) P[i] += move[i] / float(count[i / 3]);
+namespace {
+
+// One Jacobi sweep of the edge relaxation over a chunk of 4 vertices, one per lane
+// (ClothRetargeter::Relaxation): each edge's correction from the current positions, half of it to this
+// end, the vertex moved by the mean of its edges' corrections; edges too short for a direction move
+// nothing and do not count. Positions are 4 floats per vertex (x, y, z, 0), read from `now` and written
+// to `next`. A correction is (1/2) (1 - rest / length) times the edge, the same as (1/2) (length - rest)
+// / length; with SSE the 1 / length is the hardware's estimate refined by a Newton step (about 1e-7
+// relative), so a sweep needs neither a square root nor a division per edge.
+#if defined(__SSE__)
+void relax_chunk(const float* now, const int32_t* neighbour, const float* rest_length, int slots, int first,
+                 float* next) {
+  const float* own = now + 4 * first;
+  __m128 ox = _mm_loadu_ps(own), oy = _mm_loadu_ps(own + 4), oz = _mm_loadu_ps(own + 8), ow = _mm_loadu_ps(own + 12);
+  _MM_TRANSPOSE4_PS(ox, oy, oz, ow);  // x, y, z of the 4 lanes
+  const __m128 half = _mm_set1_ps(0.5f), one = _mm_set1_ps(1.0f), three_halves = _mm_set1_ps(1.5f);
+  const __m128 shortest2 = _mm_set1_ps(1e-18f);  // edges of 1e-9 m or less have no direction
+  __m128 move_x = _mm_setzero_ps(), move_y = _mm_setzero_ps(), move_z = _mm_setzero_ps(), count = _mm_setzero_ps();
+  for (int s = 0; s < slots; ++s) {
+    const int32_t* j = neighbour + 4 * s;
+    __m128 x = _mm_loadu_ps(now + 4 * j[0]), y = _mm_loadu_ps(now + 4 * j[1]), z = _mm_loadu_ps(now + 4 * j[2]),
+           w = _mm_loadu_ps(now + 4 * j[3]);
+    _MM_TRANSPOSE4_PS(x, y, z, w);
+    const __m128 dx = _mm_sub_ps(x, ox), dy = _mm_sub_ps(y, oy), dz = _mm_sub_ps(z, oz);
+    const __m128 length2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+    const __m128 counted = _mm_cmpgt_ps(length2, shortest2);
+    __m128 inverse = _mm_rsqrt_ps(length2);  // inf for a zero length: masked out below
+    inverse = _mm_mul_ps(inverse, _mm_sub_ps(three_halves, _mm_mul_ps(_mm_mul_ps(half, length2),
+                                                                      _mm_mul_ps(inverse, inverse))));
+    const __m128 c = _mm_and_ps(counted, _mm_mul_ps(half, _mm_sub_ps(one, _mm_mul_ps(_mm_loadu_ps(rest_length + 4 * s),
+                                                                                       inverse))));
+    move_x = _mm_add_ps(move_x, _mm_mul_ps(c, dx));
+    move_y = _mm_add_ps(move_y, _mm_mul_ps(c, dy));
+    move_z = _mm_add_ps(move_z, _mm_mul_ps(c, dz));
+    count = _mm_add_ps(count, _mm_and_ps(counted, one));
   }
+  const __m128 n = _mm_max_ps(count, one);
+  __m128 x = _mm_add_ps(ox, _mm_div_ps(move_x, n)), y = _mm_add_ps(oy, _mm_div_ps(move_y, n)),
+         z = _mm_add_ps(oz, _mm_div_ps(move_z, n)), w = _mm_setzero_ps();
+  _MM_TRANSPOSE4_PS(x, y, z, w);
+  float* out = next + 4 * first;
+  _mm_storeu_ps(out, x), _mm_storeu_ps(out + 4, y), _mm_storeu_ps(out + 8, z), _mm_storeu_ps(out + 12, w);
+}
+#else
+void relax_chunk(const float* now, const int32_t* neighbour, const float* rest_length, int slots, int first,
+                 float* next) {
+  for (int l = 0; l < 4; ++l) {
+    const float* own = now + 4 * (first + l);
+    float move[3] = {}, count = 0;
+    for (int s = 0; s < slots; ++s) {
+      const float* other = now + 4 * neighbour[4 * s + l];
+      const float d[3] = {other[0] - own[0], other[1] - own[1], other[2] - own[2]};
+      const float length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (!(length > 1e-9f)) continue;
+      const float c = 0.5f * (length - rest_length[4 * s + l]) / length;
+      for (int k = 0; k < 3; ++k) move[k] += c * d[k];
+      count += 1;
+    }
+    float* out = next + 4 * (first + l);
+    for (int k = 0; k < 3; ++k) out[k] = own[k] + (count > 0 ? move[k] / count : 0.0f);
+    out[3] = 0;
+  }
+}
+#endif
+
+}  // namespace
+
+// Edge relaxation towards the target's rest lengths, Jacobi: every edge's correction from the same
+// positions, half to each end, each vertex moved by the mean of its edges' corrections. Each vertex
+// gathers its own edges (every edge is evaluated at both ends), so that vertices run side by side in
+// vector lanes and nothing is scattered; no allocation.
+void ClothRetargeter::relax(MatrixX3f& A) {
+  static_assert(kRelaxLanes == 4, "relax_chunk runs 4 lanes");
+  if (options_.relax_iterations <= 0) return;
+  Relaxation& r = relaxation_;
+  const int N = int(A.rows()), chunks = int(r.slot_begin.size()) - 1, padded = chunks * kRelaxLanes;
+  float* now = r.positions.data();
+  float* next = now + 4 * padded;
+  for (int k = 0; k < N; ++k) now[4 * k] = A(k, 0), now[4 * k + 1] = A(k, 1), now[4 * k + 2] = A(k, 2);
+  for (int it = 0; it < options_.relax_iterations; ++it) {
+    for (int c = 0; c < chunks; ++c) {
+      const int32_t begin = r.slot_begin[size_t(c)];
+      relax_chunk(now, r.neighbour.data() + begin, r.rest_length.data() + begin,
+                  (r.slot_begin[size_t(c) + 1] - begin) / kRelaxLanes, c * kRelaxLanes, next);
+    }
+    std::swap(now, next);
+  }
+  for (int k = 0; k < N; ++k) A.row(k) << now[4 * k], now[4 * k + 1], now[4 * k + 2];
 }
 
 }  // namespace amt

@@ -141,12 +141,16 @@ class ClothRetargeter {
     Eigen::VectorXf clearance;  // per apparel vertex: weighted signed distance to its faces' planes
     int num_vertices = 0;
   };
-  // The edge relaxation's edges (both ends apparel, by apparel position) and what each sweep reuses.
+  // The edge relaxation's edges, per apparel vertex (both ends apparel, by apparel position), laid out
+  // for a sweep vectorised over vertices: vertices in chunks of kRelaxLanes (the last one padded), chunk
+  // c's edges as slots s of lanes l at slot_begin[c] + s * kRelaxLanes + l, as many slots as its vertex
+  // with the most edges; empty slots name the lane's own vertex (a zero-length edge, skipped).
+  static constexpr int kRelaxLanes = 4;
   struct Relaxation {
-    std::vector<int32_t> ends;           // 2 per edge
-    std::vector<float> rest_length;      // per edge, on the target
-    std::vector<float> inverse_degree;   // per apparel vertex: 1 / its edge count (0 without edges)
-    std::vector<float> move;             // per apparel vertex, 3 floats: a sweep's summed corrections
+    std::vector<int32_t> slot_begin;  // per chunk, then the total
+    std::vector<int32_t> neighbour;   // per slot: the edge's other end
+    std::vector<float> rest_length;   // per slot: the edge's rest length on the target
+    std::vector<float> positions;     // per padded vertex x, y, z, 0; then the same for the next sweep
   };
   static Side make_side(const ClothCharacter& c, const std::vector<int32_t>& apparel, const WrapOptions& wrap);
   void relax(MatrixX3f& A);

@@ -150,8 +150,11 @@ TEST(ClothRetarget, RelaxationPullsAStretchedEdgeBackTowardsItsRestLength) {
   EXPECT_LT((relaxed.row(corner) - c.mesh.V.row(corner)).norm(), 0.5f * (s.row(corner) - c.mesh.V.row(corner)).norm());
 }
 
-// The relaxation as first written (data_tools/cloth_retarget.cpp before it moved to flat arrays): Jacobi
-// sweeps over the apparel edges of `c`, rest lengths from its rest mesh.
+// The relaxation as first written (data_tools/cloth_retarget.cpp before it moved to flat arrays and vector
+// lanes): Jacobi sweeps over the apparel edges of `c`, rest lengths from its rest mesh, a square root and
+// a division per edge. The retargeter's sweeps sum each vertex's corrections in another order and, with
+// SSE, take 1 / length from the hardware's estimate and a Newton step: the same positions within
+// rounding (3e-8 m here, 1.8e-7 m on the bench's 6318 apparel vertices over 20 sweeps), checked to 1e-6 m.
 void reference_relaxation(const ClothCharacter& c, const std::vector<int32_t>& apparel, int iterations, MatrixX3f& A) {
   std::vector<int32_t> position(c.apparel_mask.size(), -1);
   for (size_t k = 0; k < apparel.size(); ++k) position[size_t(apparel[k])] = int32_t(k);
