@@ -376,21 +376,25 @@ void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   // What stays_clear() and distance() read is refitted on the query nodes alone (boxes, motions); the
   // full nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
   // refresh their corners, boxes and motions in parallel.
+  // Each vertex's displacement from its stored (previous) position relative to the shift, once per vertex
+  // rather than once per corner.
+  motion2_.resize(size_t(V.rows()));
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    motion2_[size_t(i)] = (V.row(i).transpose() - vertices_.row(i).transpose() - shift_).squaredNorm();
+  }
   const int32_t num_nodes = static_cast<int32_t>(query_nodes_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
     QueryNode& node = query_nodes_[size_t(n)];
     if (!node.is_leaf()) continue;
-    float motion2 = 0;  // the corners' displacements from their stored (previous) positions
+    float motion2 = 0;  // the corners' largest
     node.box.setEmpty();
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
       Triangle& tri = triangles_[size_t(t)];
-      const Eigen::Vector3f a = V.row(faces_(tri.face, 0)).transpose(), b = V.row(faces_(tri.face, 1)).transpose(),
-                            c = V.row(faces_(tri.face, 2)).transpose();
-      motion2 = std::max({motion2, (a - tri.a - shift_).squaredNorm(), (b - tri.b - shift_).squaredNorm(),
-                          (c - tri.c - shift_).squaredNorm()});
-      tri.a = a, tri.b = b, tri.c = c;
-      node.box.extend(a).extend(b).extend(c);
+      const int32_t i = faces_(tri.face, 0), j = faces_(tri.face, 1), k = faces_(tri.face, 2);
+      tri.a = V.row(i).transpose(), tri.b = V.row(j).transpose(), tri.c = V.row(k).transpose();
+      motion2 = std::max({motion2, motion2_[size_t(i)], motion2_[size_t(j)], motion2_[size_t(k)]});
+      node.box.extend(tri.a).extend(tri.b).extend(tri.c);
     }
     node.motion = std::sqrt(motion2) * (1.0f + 1e-6f);
   }

@@ -165,6 +165,7 @@ class WindingNumberTree {
 
   MatrixX3i faces_;     // the construction's F, for refit
   MatrixX3f vertices_;  // positions of the last build or refit, for the displacements of the next
+  std::vector<float> motion2_;  // refit's working space: per vertex its squared displacement relative to shift_
   Eigen::Vector3f shift_ = Eigen::Vector3f::Zero();
   bool far_field_current_ = true;  // false between refit(V, false) and update_far_field()
   std::vector<Triangle> triangles_;

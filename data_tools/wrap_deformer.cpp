@@ -185,6 +185,10 @@ WrapDeformer::WrapDeformer(WrapBinding binding, const MatrixX3i& corners) : bind
         for (int j = 0; j < 3; ++j) corners_.push_back(corners(f, j));
       }
       slot_[static_cast<size_t>(i * k + s)] = used[static_cast<size_t>(f)];
+      const float w = binding_.weight(i, s);
+      weighted_.push_back(w);
+      for (int j = 0; j < 3; ++j) weighted_.push_back(w * binding_.local(i * k + s, j));
+      for (int j = 0; j < 3; ++j) weighted_.push_back(w * binding_.rest_offset(i * k + s, j));
     }
   }
 }
@@ -217,17 +221,16 @@ void WrapDeformer::deform(const MatrixX3f& V, MatrixX3f& out, MatrixX3f* normals
     for (int s = 0; s < k; ++s) {
       const auto u = static_cast<size_t>(slot_[static_cast<size_t>(i * k + s)]);
       const float* f = &frames.data[kStride * u];
-      const float w = binding_.weight(i, s);
-      Eigen::Vector3f offset;
+      const float* w = &weighted_[static_cast<size_t>(7 * (i * k + s))];  // w, w * local, w * rest_offset
+      // w (centroid + offset), the offset the local coordinates in the face's frame (or the rest offset).
+      p += w[0] * Eigen::Map<const Eigen::Vector3f>(f);
       if (frames.collapsed[u]) {
-        offset = binding_.rest_offset.row(i * k + s).transpose();
+        p += Eigen::Map<const Eigen::Vector3f>(w + 4);
       } else {
-        const float* l = &binding_.local(i * k + s, 0);
-        offset = Eigen::Map<const Eigen::Vector3f>(f + 3) * l[0] + Eigen::Map<const Eigen::Vector3f>(f + 6) * l[1] +
-                 Eigen::Map<const Eigen::Vector3f>(f + 9) * l[2];
+        p += Eigen::Map<const Eigen::Vector3f>(f + 3) * w[1] + Eigen::Map<const Eigen::Vector3f>(f + 6) * w[2] +
+             Eigen::Map<const Eigen::Vector3f>(f + 9) * w[3];
       }
-      p += w * (Eigen::Map<const Eigen::Vector3f>(f) + offset);
-      if (normals) n += w * Eigen::Map<const Eigen::Vector3f>(f + 12);
+      if (normals) n += w[0] * Eigen::Map<const Eigen::Vector3f>(f + 12);
     }
     out.row(i) = p.transpose();
     if (normals) {

@@ -94,6 +94,8 @@ class WrapDeformer {
   WrapBinding binding_;
   std::vector<int32_t> corners_;  // 3 per used face
   std::vector<int32_t> slot_;     // per point and slot (row-major like binding.face): its used face
+  std::vector<float> weighted_;   // per point and slot: weight, then weight times local (3), then weight
+                                  // times rest_offset (3)
 };
 
 /// The frame of face f of (V, F): rows e1, e2, n (a rotation: R * (p - c) gives local coordinates);
