@@ -106,7 +106,7 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
   compact();
-  for (QueryNode& q : query_nodes_) q.motion = std::numeric_limits<float>::infinity();  // no refit yet
+  for (BoundsNode& b : bounds_) b.motion = std::numeric_limits<float>::infinity();  // no refit yet
 }
 
 // Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
@@ -133,13 +133,16 @@ float WindingNumberTree::QueryNode::solid_angle(const Eigen::Vector3f& r) const 
 
 void WindingNumberTree::compact() {
   query_nodes_.resize(nodes_.size());
+  bounds_.resize(nodes_.size());
   const double beta2 = beta_ * beta_;
 #pragma omp parallel for schedule(static, 256)
   for (int64_t n = 0; n < int64_t(nodes_.size()); ++n) {
     const Node& node = nodes_[size_t(n)];
     const FarField& far = node.far_field;
     QueryNode& q = query_nodes_[size_t(n)];
-    q.box = node.box;
+    BoundsNode& b = bounds_[size_t(n)];
+    b.box = node.box;
+    b.left = node.left, b.right = node.right, b.first = node.first, b.count = node.count;
     q.center = far.center.cast<float>();
     q.open2 = float(beta2 * node.radius * node.radius);
     q.normal_sum = far.normal_sum.cast<float>();
@@ -340,7 +343,7 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const QueryNode& node = query_nodes_[size_t(stack[--top])];
+    const BoundsNode& node = bounds_[size_t(stack[--top])];
     if (static_cast<double>(node.box.squaredExteriorDistance(p)) >= best2) continue;
     if (node.is_leaf()) {
       for (int32_t t = node.first; t < node.first + node.count; ++t) {
@@ -353,8 +356,8 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
         }
       }
     } else {
-      const float d_left = query_nodes_[size_t(node.left)].box.squaredExteriorDistance(p);
-      const float d_right = query_nodes_[size_t(node.right)].box.squaredExteriorDistance(p);
+      const float d_left = bounds_[size_t(node.left)].box.squaredExteriorDistance(p);
+      const float d_right = bounds_[size_t(node.right)].box.squaredExteriorDistance(p);
       const bool left_first = d_left <= d_right;
       const int32_t near = left_first ? node.left : node.right, far = left_first ? node.right : node.left;
       const float d_near = std::min(d_left, d_right), d_far = std::max(d_left, d_right);
@@ -373,19 +376,20 @@ void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the vertex displacements, in double: #V terms
   for (Eigen::Index i = 0; i < V.rows(); ++i) sum += (V.row(i) - vertices_.row(i)).transpose().cast<double>();
   shift_ = V.rows() > 0 ? Eigen::Vector3f((sum / double(V.rows())).cast<float>()) : Eigen::Vector3f::Zero();
-  // What stays_clear() and distance() read is refitted on the query nodes alone (boxes, motions); the
-  // full nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
-  // refresh their corners, boxes and motions in parallel.
   // Each vertex's displacement from its stored (previous) position relative to the shift, once per vertex
-  // rather than once per corner.
+  // rather than once per corner; then the new position is stored.
   motion2_.resize(size_t(V.rows()));
   for (Eigen::Index i = 0; i < V.rows(); ++i) {
     motion2_[size_t(i)] = (V.row(i).transpose() - vertices_.row(i).transpose() - shift_).squaredNorm();
+    vertices_.row(i) = V.row(i);
   }
-  const int32_t num_nodes = static_cast<int32_t>(query_nodes_.size());
+  // What stays_clear() and distance() read is refitted on bounds_ alone (boxes, motions); the full
+  // nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
+  // refresh their corners, boxes and motions in parallel.
+  const int32_t num_nodes = static_cast<int32_t>(bounds_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
-    QueryNode& node = query_nodes_[size_t(n)];
+    BoundsNode& node = bounds_[size_t(n)];
     if (!node.is_leaf()) continue;
     float motion2 = 0;  // the corners' largest
     node.box.setEmpty();
@@ -400,13 +404,12 @@ void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
-    QueryNode& node = query_nodes_[size_t(n)];
+    BoundsNode& node = bounds_[size_t(n)];
     if (node.is_leaf()) continue;
-    const QueryNode &left = query_nodes_[size_t(node.left)], &right = query_nodes_[size_t(node.right)];
+    const BoundsNode &left = bounds_[size_t(node.left)], &right = bounds_[size_t(node.right)];
     node.box = left.box.merged(right.box);
     node.motion = std::max(left.motion, right.motion);
   }
-  vertices_ = V;
   far_field_current_ = false;
   if (far_field) update_far_field();
 }
@@ -432,7 +435,7 @@ bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const QueryNode& node = query_nodes_[size_t(stack[--top])];
+    const BoundsNode& node = bounds_[size_t(stack[--top])];
     // 1 um of slack covers the rounding of the single-precision boxes; inf before the first refit.
     const float reach = point_motion + node.motion + 1e-6f;
     if (!(node.box.squaredExteriorDistance(p) > reach * reach)) {

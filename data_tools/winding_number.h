@@ -128,14 +128,13 @@ class WindingNumberTree {
     bool is_leaf() const { return left < 0; }
   };
 
-  // What a query reads of a node: the far field contracted to the coefficients its evaluation uses, in
-  // single precision (152 bytes against the Node's 420), so that the hot part of a body's tree stays in
-  // cache. The flux of the expansion seen from q = center - r (FarField::solid_angle) only depends on
-  // the symmetric part of M and on the fully symmetrised Q:
+  // What a winding-number query reads of a node: the far field contracted to the coefficients its
+  // evaluation uses, in single precision (124 bytes against the Node's 420), so that the hot part of a
+  // body's tree stays in cache. The flux of the expansion seen from q = center - r (FarField::solid_angle)
+  // only depends on the symmetric part of M and on the fully symmetrised Q:
   //   r.N / |r|^3 + tr M / |r|^3 - 3 r^T M r / |r|^5 - 3/2 r.w / |r|^5 + 15/2 C(r) / |r|^7,
   //   w_k = 2 sum_i Q_iik + sum_j Q_kjj,   C(r) = sum_ijk Q_ijk r_i r_j r_k (10 monomial coefficients).
   struct QueryNode {
-    Eigen::AlignedBox3f box;
     Eigen::Vector3f center;
     float open2 = 0;             // (beta radius)^2: nearer than this the node is opened
     Eigen::Vector3f normal_sum;  // N
@@ -143,11 +142,19 @@ class WindingNumberTree {
     float m_sym[6] = {};         // M's symmetric part: xx, yy, zz, xy, xz, yz
     Eigen::Vector3f w;
     float cubic[10] = {};        // C's coefficients of x^3, x^2 y, x^2 z, x y^2, x y z, x z^2, y^3, y^2 z, y z^2, z^3
-    float motion = 0;            // largest corner displacement relative to shift_ in the last refit (inf: none yet)
     int32_t left = -1, right = -1, first = 0, count = 0;
     bool is_leaf() const { return left < 0; }
     // Solid angle of the subtree seen from q = center - r, by its second-order expansion.
     float solid_angle(const Eigen::Vector3f& r) const;
+  };
+
+  // What distance(), stays_clear() and a refit without the far field read and write of a node (44 bytes):
+  // its box and motion, kept up to date by every refit.
+  struct BoundsNode {
+    Eigen::AlignedBox3f box;
+    float motion = 0;  // largest corner displacement relative to shift_ in the last refit (inf: none yet)
+    int32_t left = -1, right = -1, first = 0, count = 0;
+    bool is_leaf() const { return left < 0; }
   };
 
   // Builds the subtree over triangles_[first, first + count) and returns its node index.
@@ -160,7 +167,7 @@ class WindingNumberTree {
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
   void merge_children(int32_t index);
 
-  // Rewrites query_nodes_ from nodes_ (after a build or a refit), all but their motions.
+  // Rewrites query_nodes_ and bounds_ from nodes_ (after a build or a refit), all but the motions.
   void compact();
 
   MatrixX3i faces_;     // the construction's F, for refit
@@ -170,7 +177,8 @@ class WindingNumberTree {
   bool far_field_current_ = true;  // false between refit(V, false) and update_far_field()
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
-  std::vector<QueryNode> query_nodes_;  // nodes_ as the queries read them, same indices
+  std::vector<QueryNode> query_nodes_;  // nodes_ as the winding-number queries read them, same indices
+  std::vector<BoundsNode> bounds_;       // nodes_' boxes and motions, same indices
   double beta_;
 };
 
