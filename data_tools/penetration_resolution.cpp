@@ -79,13 +79,12 @@ int PenetrationResolver::classify(const MatrixX3f& V) {
   inside_.resize(size_t(Na));
   query_.clear();
   const WindingNumberTree& tree = *tree_;
-  const Eigen::Vector3f shift = tree.shift();
   constexpr uint8_t kOpen = 2;  // no verdict carried over: queried below
   int carried = 0;
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : carried)
   for (int k = 0; k < Na; ++k) {
     const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
-    if (carry && tree.stays_clear(p, (p - previous_.row(k).transpose() - shift).norm())) {
+    if (carry && tree.stays_clear(p, p - previous_.row(k).transpose())) {
       ++carried;
     } else {
       inside_[size_t(k)] = kOpen;

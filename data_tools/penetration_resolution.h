@@ -17,9 +17,10 @@
 // Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
 // refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
 // rebuilt: the body's faces do not change between frames, only its positions. And since that surface
-// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when
-// neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear): the verdict
-// is then exactly what the query would say, and most vertices away from the skin skip it. The refit
+// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when,
+// seen from the vertex, no part of the body moved far enough to reach it (WindingNumberTree::stays_clear):
+// the verdict is then exactly what the query would say, and vertices away from the skin or moving with the
+// skin under them skip it. The refit
 // moves only the tree's triangles and boxes, all that stays_clear and the distances read; the far-field
 // expansions of the winding number, most of a refit's cost, are refitted only in a frame where some
 // vertex needs a query (WindingNumberTree::update_far_field).

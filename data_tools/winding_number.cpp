@@ -106,7 +106,10 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
   compact();
-  for (BoundsNode& b : bounds_) b.motion = std::numeric_limits<float>::infinity();  // no refit yet
+  const float inf = std::numeric_limits<float>::infinity();
+  for (BoundsNode& b : bounds_) {  // no refit yet: unbounded
+    b.displacement = Eigen::AlignedBox3f(Eigen::Vector3f::Constant(-inf), Eigen::Vector3f::Constant(inf));
+  }
 }
 
 // Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
@@ -373,34 +376,28 @@ void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());
   AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the vertex displacements, in double: #V terms
-  for (Eigen::Index i = 0; i < V.rows(); ++i) sum += (V.row(i) - vertices_.row(i)).transpose().cast<double>();
-  shift_ = V.rows() > 0 ? Eigen::Vector3f((sum / double(V.rows())).cast<float>()) : Eigen::Vector3f::Zero();
-  // Each vertex's displacement from its stored (previous) position relative to the shift, once per vertex
-  // rather than once per corner; then the new position is stored.
-  motion2_.resize(size_t(V.rows()));
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
-    motion2_[size_t(i)] = (V.row(i).transpose() - vertices_.row(i).transpose() - shift_).squaredNorm();
-    vertices_.row(i) = V.row(i);
-  }
-  // What stays_clear() and distance() read is refitted on bounds_ alone (boxes, motions); the full
-  // nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
-  // refresh their corners, boxes and motions in parallel.
+  // Each vertex's displacement from its stored (previous) position; then the new position is stored.
+  displacement_ = V - vertices_;
+  vertices_ = V;
+  // What stays_clear() and distance() read is refitted on bounds_ alone (boxes, displacement boxes); the
+  // full nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
+  // refresh their corners and boxes in parallel.
   const int32_t num_nodes = static_cast<int32_t>(bounds_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
     BoundsNode& node = bounds_[size_t(n)];
     if (!node.is_leaf()) continue;
-    float motion2 = 0;  // the corners' largest
     node.box.setEmpty();
+    node.displacement.setEmpty();
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
       Triangle& tri = triangles_[size_t(t)];
       const int32_t i = faces_(tri.face, 0), j = faces_(tri.face, 1), k = faces_(tri.face, 2);
       tri.a = V.row(i).transpose(), tri.b = V.row(j).transpose(), tri.c = V.row(k).transpose();
-      motion2 = std::max({motion2, motion2_[size_t(i)], motion2_[size_t(j)], motion2_[size_t(k)]});
       node.box.extend(tri.a).extend(tri.b).extend(tri.c);
+      node.displacement.extend(displacement_.row(i).transpose())
+          .extend(displacement_.row(j).transpose())
+          .extend(displacement_.row(k).transpose());
     }
-    node.motion = std::sqrt(motion2) * (1.0f + 1e-6f);
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
@@ -408,7 +405,7 @@ void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
     if (node.is_leaf()) continue;
     const BoundsNode &left = bounds_[size_t(node.left)], &right = bounds_[size_t(node.right)];
     node.box = left.box.merged(right.box);
-    node.motion = std::max(left.motion, right.motion);
+    node.displacement = left.displacement.merged(right.displacement);
   }
   far_field_current_ = false;
   if (far_field) update_far_field();
@@ -428,16 +425,20 @@ void WindingNumberTree::update_far_field() {
   far_field_current_ = true;
 }
 
-bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion) const {
-  if (!(point_motion >= 0) || !std::isfinite(point_motion)) return false;
+bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, const Eigen::Vector3f& displacement) const {
+  if (!displacement.allFinite()) return false;
   const Eigen::Vector3d q = to_double(p);
   int32_t stack[kMaxStack];
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
     const BoundsNode& node = bounds_[size_t(stack[--top])];
-    // 1 um of slack covers the rounding of the single-precision boxes; inf before the first refit.
-    const float reach = point_motion + node.motion + 1e-6f;
+    // The farthest any of the node's corners moved relative to the point: to the farthest corner of its
+    // displacement box; 1 um of slack covers the rounding of the single-precision boxes. Infinite
+    // before the first refit.
+    const Eigen::Vector3f farthest =
+        (node.displacement.min() - displacement).cwiseAbs().cwiseMax((node.displacement.max() - displacement).cwiseAbs());
+    const float reach = farthest.norm() + 1e-6f;
     if (!(node.box.squaredExteriorDistance(p) > reach * reach)) {
       if (!node.is_leaf()) {
         stack[top++] = node.left;

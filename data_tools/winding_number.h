@@ -69,9 +69,9 @@ class WindingNumberTree {
   /// This is what the runtime does per frame instead of building a tree over the posed body.
   /// Throws amt::Error on a row count other than the construction's or on non-finite positions.
   ///
-  /// A refit also records how far the surface moved since the previous positions, for stays_clear().
+  /// A refit also records how far each vertex moved since the previous positions, for stays_clear().
   ///
-  /// With far_field false only the triangles, boxes and motions are refitted: distance() and
+  /// With far_field false only the triangles, boxes and displacements are refitted: distance() and
   /// stays_clear() are then exact for V, while winding_number() and inside() throw until
   /// update_far_field() has brought the expansions up to date (most of a refit's cost, which a caller
   /// whose points all keep their verdicts through stays_clear() never pays).
@@ -85,19 +85,18 @@ class WindingNumberTree {
   /// update_far_field()).
   bool far_field_current() const { return far_field_current_; }
 
-  /// Mean displacement of the surface's vertices in the last refit (zero after a build).
-  const Eigen::Vector3f& shift() const { return shift_; }
-
-  /// True when a point now at p, which moved by at most `point_motion` metres relative to shift()
-  /// since the previous refit, cannot have met the surface meanwhile: with the point and every vertex
-  /// moving on straight lines over the same time, no triangle came within the point's path. Then
-  /// the point is on the same side of a closed surface as before (its winding number, an integer off
-  /// the surface, could not change). The test: every triangle T is farther from p than point_motion
-  /// plus the largest displacement of T's corners relative to shift(), checked top-down with the
-  /// subtrees' boxes and largest displacements; it stops at the first triangle too near. Always false
-  /// before the first refit. This is what lets the runtime skip the winding number of most apparel
-  /// vertices from one frame to the next (data_tools/penetration_resolution.h).
-  bool stays_clear(const Eigen::Vector3f& p, float point_motion) const;
+  /// True when a point now at p, which moved by `displacement` since the previous refit, cannot have
+  /// met the surface meanwhile: with the point and every vertex moving on straight lines over the same
+  /// time, no triangle came within the point's path. Then the point is on the same side of a closed
+  /// surface as before (its winding number, an integer off the surface, could not change). The test, in
+  /// the frame that moves with the point (where it stands still): every triangle T is farther from p
+  /// than the largest displacement of T's corners less `displacement`, checked top-down with the
+  /// subtrees' boxes and the boxes of their corners' displacements; it stops at the first triangle too
+  /// near. Apparel that moves with the body near it keeps its verdicts however fast the body moves.
+  /// Always false before the first refit and for a non-finite displacement. This is what lets the
+  /// runtime skip the winding number of most apparel vertices from one frame to the next
+  /// (data_tools/penetration_resolution.h).
+  bool stays_clear(const Eigen::Vector3f& p, const Eigen::Vector3f& displacement) const;
 
  private:
   // One triangle's corners, stored in tree order so that a leaf's triangles are contiguous.
@@ -148,11 +147,11 @@ class WindingNumberTree {
     float solid_angle(const Eigen::Vector3f& r) const;
   };
 
-  // What distance(), stays_clear() and a refit without the far field read and write of a node (44 bytes):
-  // its box and motion, kept up to date by every refit.
+  // What distance(), stays_clear() and a refit without the far field read and write of a node (64 bytes,
+  // a cache line): its box and the box of its corners' displacements in the last refit (unbounded before
+  // the first), kept up to date by every refit.
   struct BoundsNode {
-    Eigen::AlignedBox3f box;
-    float motion = 0;  // largest corner displacement relative to shift_ in the last refit (inf: none yet)
+    Eigen::AlignedBox3f box, displacement;
     int32_t left = -1, right = -1, first = 0, count = 0;
     bool is_leaf() const { return left < 0; }
   };
@@ -167,18 +166,17 @@ class WindingNumberTree {
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
   void merge_children(int32_t index);
 
-  // Rewrites query_nodes_ and bounds_ from nodes_ (after a build or a refit), all but the motions.
+  // Rewrites query_nodes_ and bounds_ from nodes_ (after a build or a refit), all but the displacements.
   void compact();
 
   MatrixX3i faces_;     // the construction's F, for refit
   MatrixX3f vertices_;  // positions of the last build or refit, for the displacements of the next
-  std::vector<float> motion2_;  // refit's working space: per vertex its squared displacement relative to shift_
-  Eigen::Vector3f shift_ = Eigen::Vector3f::Zero();
+  MatrixX3f displacement_;  // refit's working space: per vertex its displacement
   bool far_field_current_ = true;  // false between refit(V, false) and update_far_field()
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
   std::vector<QueryNode> query_nodes_;  // nodes_ as the winding-number queries read them, same indices
-  std::vector<BoundsNode> bounds_;       // nodes_' boxes and motions, same indices
+  std::vector<BoundsNode> bounds_;       // nodes_' boxes and displacement boxes, same indices
   double beta_;
 };
 
