@@ -173,18 +173,19 @@ void WindingNumberTree::compact() {
   }
 }
 
+template <typename Sum>
 Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
-  // Per-triangle terms in single precision (corners are single precision), sums in double: this runs
-  // over every triangle of the body at every refit, once per frame.
+  // Per-triangle terms in single precision (corners are single precision), sums in Sum: float over a
+  // leaf's few triangles, which every frame's refit fits; double over the many of a node the build fits.
+  using Vector = Eigen::Matrix<Sum, 3, 1>;
   const int32_t first = node.first, count = node.count;
   FarField& far = node.far_field;
   node.box.setEmpty();
   // First pass: bounds, area-weighted centroid and normal sum, and the bounds of the triangle
   // centroids, which choose the split.
   Eigen::AlignedBox3f centroid_box;
-  Eigen::Vector3d weighted_centroids = Eigen::Vector3d::Zero(), plain_centroids = Eigen::Vector3d::Zero();
-  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
-  double area = 0;
+  Vector weighted_centroids = Vector::Zero(), plain_centroids = Vector::Zero(), normal_sum = Vector::Zero();
+  Sum area = 0;
   for (int32_t t = first; t < first + count; ++t) {
     const Triangle& tri = triangles_[size_t(t)];
     node.box.extend(tri.a).extend(tri.b).extend(tri.c);
@@ -192,20 +193,23 @@ Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
     centroid_box.extend(centroid);
     const Eigen::Vector3f area_normal = 0.5f * (tri.b - tri.a).cross(tri.c - tri.a);  // a_t n_t
     const float triangle_area = area_normal.norm();
-    normal_sum += area_normal.cast<double>();
-    weighted_centroids += double(triangle_area) * centroid.cast<double>();
-    plain_centroids += centroid.cast<double>();
+    normal_sum += area_normal.cast<Sum>();
+    weighted_centroids += Sum(triangle_area) * centroid.cast<Sum>();
+    plain_centroids += centroid.cast<Sum>();
     area += triangle_area;
   }
-  far.normal_sum = normal_sum;
-  far.center = area > 0 ? Eigen::Vector3d(weighted_centroids / area) : Eigen::Vector3d(plain_centroids / count);
-  node.area = area;
+  far.normal_sum = normal_sum.template cast<double>();
+  far.center = area > 0 ? Eigen::Vector3d((weighted_centroids / area).template cast<double>())
+                        : Eigen::Vector3d((plain_centroids / Sum(count)).template cast<double>());
+  node.area = double(area);
 
   // Second pass, about the centre: moments and radius. Over a triangle with centroid x_t, the mean of
   // (x - c)(x - c)^T is S_t = d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c; symmetric,
   // kept as its 6 entries xx, yy, zz, xy, xz, yz.
   const Eigen::Vector3f center = far.center.cast<float>();
-  double first_moment[3][3] = {}, second_moment[3][6] = {};
+  // Row i of first_moment is M's row i; row i of second_moment Q_i's 6 entries.
+  Eigen::Matrix<Sum, 3, 3> first_moment = Eigen::Matrix<Sum, 3, 3>::Zero();
+  Eigen::Matrix<Sum, 3, 6> second_moment = Eigen::Matrix<Sum, 3, 6>::Zero();
   float radius2 = 0;
   for (int32_t t = first; t < first + count; ++t) {
     const Triangle& tri = triangles_[size_t(t)];
@@ -213,17 +217,16 @@ Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
     const Eigen::Vector3f centroid = (tri.a + tri.b + tri.c) / 3.0f, d = centroid - center;
     const Eigen::Vector3f ea = tri.a - centroid, eb = tri.b - centroid, ec = tri.c - centroid;
     const auto spread = [&](int i, int j) { return d[i] * d[j] + (ea[i] * ea[j] + eb[i] * eb[j] + ec[i] * ec[j]) / 12.0f; };
-    const float S[6] = {spread(0, 0), spread(1, 1), spread(2, 2), spread(0, 1), spread(0, 2), spread(1, 2)};
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) first_moment[i][j] += double(area_normal[i] * d[j]);
-      for (int k = 0; k < 6; ++k) second_moment[i][k] += double(area_normal[i] * S[k]);
-    }
-    radius2 = std::max({radius2, (tri.a - center).squaredNorm(), (tri.b - center).squaredNorm(),
-                        (tri.c - center).squaredNorm()});
+    Eigen::Matrix<float, 1, 6> S;
+    S << spread(0, 0), spread(1, 1), spread(2, 2), spread(0, 1), spread(0, 2), spread(1, 2);
+    first_moment += (area_normal * d.transpose()).template cast<Sum>();
+    second_moment += (area_normal * S).template cast<Sum>();
+    radius2 = std::max(radius2, std::max((tri.a - center).squaredNorm(),
+                                         std::max((tri.b - center).squaredNorm(), (tri.c - center).squaredNorm())));
   }
+  far.first_moment = first_moment.template cast<double>();
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) far.first_moment(i, j) = first_moment[i][j];
-    const double* q = second_moment[i];
+    const Eigen::Matrix<double, 1, 6> q = second_moment.row(i).template cast<double>();
     far.second_moment[i] << q[0], q[3], q[4], q[3], q[1], q[5], q[4], q[5], q[2];
   }
   // Rounded up by a relative 1e-6 so that single-precision rounding never makes it smaller than exact.
@@ -275,7 +278,7 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
   Node node;
   node.first = first;
   node.count = count;
-  const Eigen::AlignedBox3f centroid_box = fit(node);
+  const Eigen::AlignedBox3f centroid_box = count <= kLeafSize ? fit<float>(node) : fit<double>(node);
 
   const auto index = static_cast<int32_t>(nodes_.size());
   nodes_.push_back(node);
@@ -416,7 +419,7 @@ void WindingNumberTree::update_far_field() {
   const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
-    if (nodes_[n].is_leaf()) fit(nodes_[n]);
+    if (nodes_[n].is_leaf()) fit<float>(nodes_[n]);
   }
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
     if (!nodes_[n].is_leaf()) merge_children(n);

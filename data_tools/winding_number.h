@@ -160,7 +160,9 @@ class WindingNumberTree {
   int32_t build(int32_t first, int32_t count, int depth);
 
   // Sets node's box, far field, radius and area from its triangles triangles_[first, first + count);
-  // returns the bounds of the triangle centroids (which choose the split).
+  // returns the bounds of the triangle centroids (which choose the split). Sums in Sum (float for a
+  // leaf, double for a larger node).
+  template <typename Sum>
   Eigen::AlignedBox3f fit(Node& node) const;
 
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
