@@ -104,8 +104,9 @@ void check_same_apparel_connectivity(const ClothCharacter& source, const ClothCh
 // === The retargeter
 
 /// Registered source and target; retarget() then runs frame by frame. Holds the target body's
-/// winding-number tree between frames (refitted, data_tools/garment/penetration_resolution.h): one frame at
-/// a time, not from two threads at once.
+/// winding-number tree between frames (refitted, data_tools/garment/penetration_resolution.h) and the working
+/// space of steps 3-6, 3.1 and the relaxation (sized by the first frame, reused after): one frame at a
+/// time, not from two threads at once.
 class ClothRetargeter {
  public:
   /// Registers both characters' rest apparel to their rest bodies. Throws amt::Error for masks of the
@@ -136,24 +137,35 @@ class ClothRetargeter {
 
  private:
   struct Side {
-    std::vector<int32_t> body;  // vertex ids of the body part, ascending
-    MatrixX3i body_faces;       // faces with three body vertices, numbered into `body`
-    WrapBinding binding;        // the apparel (in apparel order) on the rest body part
+    WrapDeformer wrap;          // the apparel (apparel order) on the rest body part, read from whole frames
     Eigen::VectorXf clearance;  // per apparel vertex: weighted signed distance to its faces' planes
-    MatrixX2i edges;            // edges with two apparel ends, by apparel position
-    Eigen::VectorXf rest_length;  // their rest lengths
     int num_vertices = 0;
   };
+  // The edge relaxation's edges, per apparel vertex (both ends apparel, by apparel position), laid out
+  // for a sweep vectorised over vertices: vertices in chunks of kRelaxLanes (the last one padded), chunk
+  // c's edges as slots s of lanes l at slot_begin[c] + s * kRelaxLanes + l, as many slots as its vertex
+  // with the most edges; empty slots name the lane's own vertex (a zero-length edge, skipped).
+  static constexpr int kRelaxLanes = 4;
+  struct Relaxation {
+    std::vector<int32_t> slot_begin;  // per chunk, then the total
+    std::vector<int32_t> neighbour;   // per slot: the edge's other end
+    std::vector<float> rest_length;   // per slot: the edge's rest length on the target
+    std::vector<float> positions;     // per padded vertex x, y, z, 0; then the same for the next sweep
+  };
   static Side make_side(const ClothCharacter& c, const std::vector<int32_t>& apparel, const WrapOptions& wrap);
-  MatrixX3f wrap(const Side& side, const MatrixX3f& frame, MatrixX3f* normals) const;
+  void relax(MatrixX3f& A);
 
   ClothRetargetOptions options_;
   std::string source_name_, target_name_;
   std::vector<int32_t> source_apparel_, target_apparel_;
   Side source_, target_;
+  Relaxation relaxation_;
   std::optional<PenetrationResolver> resolver_;  // built once the inputs are checked
   double registration_seconds_ = 0;
   Eigen::VectorXf detail_scale_;
+  // Per-frame working space, kept between frames.
+  WrapDeformer::Frames frames_;
+  MatrixX3f oriented_source_, oriented_target_, normals_, apparel_;
 };
 
 }  // namespace amt

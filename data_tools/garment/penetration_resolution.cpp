@@ -64,30 +64,41 @@ const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
     body_scratch_.row(Eigen::Index(body_.size() + h)) = centre / float(holes_[h].size());
   }
   if (tree_) {
-    tree_->refit(body_scratch_);
+    tree_->refit(body_scratch_, false);  // the far field only when a query needs it (classify)
   } else {
     tree_ = std::make_unique<WindingNumberTree>(body_scratch_, body_faces_);
   }
   return *tree_;
 }
 
-int PenetrationResolver::classify(const MatrixX3f& V, const WindingNumberTree& tree) {
+int PenetrationResolver::classify(const MatrixX3f& V) {
   const int Na = int(apparel_.size());
   // Carry-over is exact only on a closed body, where a verdict changes only by meeting the surface.
   const bool carry = closed_body_ && previous_.rows() == Na;
   previous_.resize(Na, 3);
   inside_.resize(size_t(Na));
-  const Eigen::Vector3f shift = tree.shift();
+  query_.clear();
+  const WindingNumberTree& tree = *tree_;
+  constexpr uint8_t kOpen = 2;  // no verdict carried over: queried below
   int carried = 0;
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : carried)
   for (int k = 0; k < Na; ++k) {
     const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
-    if (carry && tree.stays_clear(p, (p - previous_.row(k).transpose() - shift).norm())) {
+    if (carry && tree.stays_clear(p, p - previous_.row(k).transpose())) {
       ++carried;
     } else {
-      inside_[size_t(k)] = tree.inside(p);
+      inside_[size_t(k)] = kOpen;
     }
     previous_.row(k) = p.transpose();
+  }
+  for (int k = 0; k < Na; ++k)
+    if (inside_[size_t(k)] == kOpen) query_.push_back(k);
+  if (query_.empty()) return carried;
+  tree_->update_far_field();  // the expansions of this frame, for the winding numbers
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int q = 0; q < int(query_.size()); ++q) {
+    const int k = query_[size_t(q)];
+    inside_[size_t(k)] = tree.inside(V.row(apparel_[size_t(k)]).transpose());
   }
   return carried;
 }
@@ -100,7 +111,7 @@ Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
   AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   const WindingNumberTree& tree = posed_body(V);
-  const int c = classify(V, tree);
+  const int c = classify(V);
   if (carried) *carried = c;
   std::vector<float> depth(apparel_.size(), 0.0f);
 #pragma omp parallel for schedule(dynamic, 64)
@@ -121,7 +132,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   const WindingNumberTree& tree = posed_body(V);
-  report.carried = classify(V, tree);
+  report.carried = classify(V);
   // Push: every inside vertex to its closest body point plus the margin along the way out.
   std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
   std::vector<float> depth(size_t(Na), 0.0f);
@@ -184,6 +195,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     }
   }
   std::vector<float> still(moved.size(), -1.0f);
+  tree_->update_far_field();  // when every verdict carried over, classify() did not need it
 #pragma omp parallel for schedule(dynamic, 64)
   for (int m = 0; m < int(moved.size()); ++m) {
     const Eigen::Vector3f p = V.row(apparel_[size_t(moved[size_t(m)])]).transpose();

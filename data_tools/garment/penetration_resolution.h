@@ -17,9 +17,13 @@
 // Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
 // refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
 // rebuilt: the body's faces do not change between frames, only its positions. And since that surface
-// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when
-// neither it nor the body near it moved enough to meet (WindingNumberTree::stays_clear): the verdict
-// is then exactly what the query would say, and most vertices away from the skin skip it.
+// is closed, an apparel vertex keeps the previous frame's verdict without a winding-number query when,
+// seen from the vertex, no part of the body moved far enough to reach it (WindingNumberTree::stays_clear):
+// the verdict is then exactly what the query would say, and vertices away from the skin or moving with the
+// skin under them skip it. The refit
+// moves only the tree's triangles and boxes, all that stays_clear and the distances read; the far-field
+// expansions of the winding number, most of a refit's cost, are refitted only in a frame where some
+// vertex needs a query (WindingNumberTree::update_far_field).
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -83,8 +87,9 @@ class PenetrationResolver {
   const WindingNumberTree& posed_body(const MatrixX3f& V);
 
   // Inside verdicts of V's apparel vertices into inside_ (by apparel position), with the tree posed
-  // as in V; returns how many carried over from the previous call.
-  int classify(const MatrixX3f& V, const WindingNumberTree& tree);
+  // as in V (posed_body); returns how many carried over from the previous call. The tree's far field
+  // is brought up to date only when some vertex needs a winding-number query.
+  int classify(const MatrixX3f& V);
 
   PenetrationOptions options_;
   std::vector<int32_t> apparel_, body_;  // vertex ids of each part, ascending
@@ -97,6 +102,7 @@ class PenetrationResolver {
   bool closed_body_ = false;             // is_closed_surface(body_faces_): false only without body faces
   MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)
   std::vector<uint8_t> inside_;          // their verdicts
+  std::vector<int> query_;               // apparel positions whose verdict classify() queried
 };
 
 }  // namespace amt

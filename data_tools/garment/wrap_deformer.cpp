@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nanoflann.hpp>
 #include <numeric>
+#include <utility>
 
 #include "data_tools/geometry/error.h"
 
@@ -30,6 +31,24 @@ void check_rows_finite(const MatrixX3f& P, const char* source, const char* field
     AMT_CHECK(P.row(i).allFinite(), source, ": ", field, ": expected finite values, found ", P(i, 0), " ", P(i, 1), " ",
               P(i, 2), " at row ", i);
   }
+}
+
+// The frame of the triangle (a, b, c), as face_frame documents it.
+bool triangle_frame(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c, Eigen::Matrix3f& R,
+                    Eigen::Vector3f& centroid) {
+  centroid = (a + b + c) / 3.0f;
+  const Eigen::Vector3f normal = (b - a).cross(c - a);
+  const float edge = (b - a).norm(), area2 = normal.norm();
+  // Zero area relative to the edge: no normal to speak of.
+  if (!(edge > 0) || !(area2 > 1e-12f * std::max(edge * edge, 1e-30f))) {
+    R.setIdentity();
+    return false;
+  }
+  const Eigen::Vector3f e1 = (b - a) / edge, n = normal / area2;
+  R.row(0) = e1.transpose();
+  R.row(1) = n.cross(e1).transpose();
+  R.row(2) = n.transpose();
+  return true;
 }
 
 }  // namespace
@@ -61,20 +80,8 @@ float point_triangle_distance2(const Eigen::Vector3f& p, const Eigen::Vector3f& 
 }
 
 bool face_frame(const MatrixX3f& V, const MatrixX3i& F, int64_t f, Eigen::Matrix3f& R, Eigen::Vector3f& centroid) {
-  const Eigen::Vector3f a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(), c = V.row(F(f, 2)).transpose();
-  centroid = (a + b + c) / 3.0f;
-  const Eigen::Vector3f normal = (b - a).cross(c - a);
-  const float edge = (b - a).norm(), area2 = normal.norm();
-  // Zero area relative to the edge: no normal to speak of.
-  if (!(edge > 0) || !(area2 > 1e-12f * std::max(edge * edge, 1e-30f))) {
-    R.setIdentity();
-    return false;
-  }
-  const Eigen::Vector3f e1 = (b - a) / edge, n = normal / area2;
-  R.row(0) = e1.transpose();
-  R.row(1) = n.cross(e1).transpose();
-  R.row(2) = n.transpose();
-  return true;
+  return triangle_frame(V.row(F(f, 0)).transpose(), V.row(F(f, 1)).transpose(), V.row(F(f, 2)).transpose(), R,
+                        centroid);
 }
 
 WrapBinding wrap_register(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& points, const WrapOptions& options,
@@ -156,36 +163,81 @@ WrapBinding wrap_register(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3
 }
 
 MatrixX3f wrap_deform(const WrapBinding& binding, const MatrixX3f& V_moved, const MatrixX3i& F) {
-  const Eigen::Index N = binding.num_points();
-  const int k = binding.k;
-  // The frames of the bound faces only, each once.
-  std::vector<int32_t> slot(static_cast<size_t>(F.rows()), -1);
-  std::vector<Eigen::Matrix3f> frames;
-  std::vector<Eigen::Vector3f> centres;
-  std::vector<bool> collapsed;
-  MatrixX3f out = MatrixX3f::Zero(N, 3);
-  for (Eigen::Index i = 0; i < N; ++i) {
-    Eigen::Vector3f p = Eigen::Vector3f::Zero();
+  MatrixX3f out;
+  WrapDeformer::Frames frames;
+  WrapDeformer(binding, F).deform(V_moved, out, nullptr, frames);
+  return out;
+}
+
+WrapDeformer::WrapDeformer(WrapBinding binding, const MatrixX3i& corners) : binding_(std::move(binding)) {
+  const int64_t N = binding_.num_points();
+  const int k = binding_.k;
+  // The used faces in order of first use, each once.
+  std::vector<int32_t> used(static_cast<size_t>(corners.rows()), -1);
+  slot_.resize(static_cast<size_t>(N * k));
+  for (int64_t i = 0; i < N; ++i) {
     for (int s = 0; s < k; ++s) {
-      const int32_t f = binding.face(i, s);
-      AMT_CHECK(f >= 0 && f < F.rows(), "wrap deformer: binding: expected faces in [0, ", F.rows(), "), found ", f);
-      if (slot[static_cast<size_t>(f)] < 0) {
-        Eigen::Matrix3f R;
-        Eigen::Vector3f c;
-        collapsed.push_back(!face_frame(V_moved, F, f, R, c));
-        slot[static_cast<size_t>(f)] = static_cast<int32_t>(frames.size());
-        frames.push_back(R);
-        centres.push_back(c);
+      const int32_t f = binding_.face(i, s);
+      AMT_CHECK(f >= 0 && f < corners.rows(), "wrap deformer: binding: expected faces in [0, ", corners.rows(),
+                "), found ", f);
+      if (used[static_cast<size_t>(f)] < 0) {
+        used[static_cast<size_t>(f)] = static_cast<int32_t>(corners_.size() / 3);
+        for (int j = 0; j < 3; ++j) corners_.push_back(corners(f, j));
       }
-      const auto u = static_cast<size_t>(slot[static_cast<size_t>(f)]);
-      const Eigen::Vector3f offset = collapsed[u] ? Eigen::Vector3f(binding.rest_offset.row(i * k + s).transpose())
-                                                  : Eigen::Vector3f(frames[u].transpose() *
-                                                                    binding.local.row(i * k + s).transpose());
-      p += binding.weight(i, s) * (centres[u] + offset);
+      slot_[static_cast<size_t>(i * k + s)] = used[static_cast<size_t>(f)];
+      const float w = binding_.weight(i, s);
+      weighted_.push_back(w);
+      for (int j = 0; j < 3; ++j) weighted_.push_back(w * binding_.local(i * k + s, j));
+      for (int j = 0; j < 3; ++j) weighted_.push_back(w * binding_.rest_offset(i * k + s, j));
+    }
+  }
+}
+
+void WrapDeformer::deform(const MatrixX3f& V, MatrixX3f& out, MatrixX3f* normals, Frames& frames) const {
+  constexpr int kStride = 15;  // centroid, e1, e2, n, unit normal
+  const int faces = num_used_faces();
+  frames.data.resize(static_cast<size_t>(kStride * faces));
+  frames.collapsed.resize(static_cast<size_t>(faces));
+  for (int u = 0; u < faces; ++u) {
+    const int32_t* c = &corners_[static_cast<size_t>(3 * u)];
+    const Eigen::Vector3f a = V.row(c[0]).transpose(), b = V.row(c[1]).transpose(), d = V.row(c[2]).transpose();
+    Eigen::Matrix3f R;
+    Eigen::Vector3f centroid;
+    const bool collapsed = !triangle_frame(a, b, d, R, centroid);
+    frames.collapsed[static_cast<size_t>(u)] = collapsed;
+    float* f = &frames.data[static_cast<size_t>(kStride * u)];
+    const auto put = [f](int at, const Eigen::Vector3f& v) { f[at] = v[0], f[at + 1] = v[1], f[at + 2] = v[2]; };
+    put(0, centroid);
+    for (int r = 0; r < 3; ++r) put(3 + 3 * r, R.row(r).transpose());
+    // The unit normal: n of the frame, or of a face too thin for a frame (zero for no area at all).
+    put(12, collapsed ? Eigen::Vector3f((b - a).cross(d - a).normalized()) : Eigen::Vector3f(R.row(2).transpose()));
+  }
+  const int64_t N = binding_.num_points();
+  const int k = binding_.k;
+  out.resize(N, 3);
+  if (normals) normals->resize(N, 3);
+  for (int64_t i = 0; i < N; ++i) {
+    Eigen::Vector3f p = Eigen::Vector3f::Zero(), n = Eigen::Vector3f::Zero();
+    for (int s = 0; s < k; ++s) {
+      const auto u = static_cast<size_t>(slot_[static_cast<size_t>(i * k + s)]);
+      const float* f = &frames.data[kStride * u];
+      const float* w = &weighted_[static_cast<size_t>(7 * (i * k + s))];  // w, w * local, w * rest_offset
+      // w (centroid + offset), the offset the local coordinates in the face's frame (or the rest offset).
+      p += w[0] * Eigen::Map<const Eigen::Vector3f>(f);
+      if (frames.collapsed[u]) {
+        p += Eigen::Map<const Eigen::Vector3f>(w + 4);
+      } else {
+        p += Eigen::Map<const Eigen::Vector3f>(f + 3) * w[1] + Eigen::Map<const Eigen::Vector3f>(f + 6) * w[2] +
+             Eigen::Map<const Eigen::Vector3f>(f + 9) * w[3];
+      }
+      if (normals) n += w[0] * Eigen::Map<const Eigen::Vector3f>(f + 12);
     }
     out.row(i) = p.transpose();
+    if (normals) {
+      const float length = n.norm();
+      normals->row(i) = length > 1e-6f ? Eigen::RowVector3f(n.transpose() / length) : Eigen::RowVector3f::Zero();
+    }
   }
-  return out;
 }
 
 }  // namespace amt

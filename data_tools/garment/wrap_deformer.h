@@ -60,7 +60,43 @@ WrapBinding wrap_register(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3
 
 /// The points of `binding` carried by the deformer moved to `V_moved` (same faces F as registered).
 /// A face that collapsed to zero area keeps its rest axes and follows its centroid.
+/// (WrapDeformer below, prepared for one call.)
 MatrixX3f wrap_deform(const WrapBinding& binding, const MatrixX3f& V_moved, const MatrixX3i& F);
+
+/// A binding prepared for deforming frame after frame: the faces it uses listed once, with their
+/// corners in the numbering of the frames given to deform(). Per frame, each used face's frame is
+/// built once and every point is placed from those frames; nothing is looked up or checked per point.
+class WrapDeformer {
+ public:
+  /// Per-frame working space of deform(): the used faces' frames (one per caller or thread).
+  struct Frames {
+    std::vector<float> data;         // per used face: centroid, e1, e2, n, unit normal (15 floats)
+    std::vector<uint8_t> collapsed;  // per used face: no frame (zero area)
+  };
+
+  WrapDeformer() = default;
+  /// `binding` as registered against faces F; `corners` #F by 3, the same faces with their corners
+  /// numbered as the rows of the frames that deform() will get (F itself when the frames are the
+  /// deformer mesh; a larger numbering when the deformer is part of a bigger mesh). Throws amt::Error
+  /// when the binding names a face outside F or `corners` has another row count.
+  WrapDeformer(WrapBinding binding, const MatrixX3i& corners);
+
+  /// The points carried by the deformer posed as in V (rows numbered as `corners`) into `out` (#points
+  /// by 3, resized), exactly as wrap_deform. `normals`, when given, receives per point the normalised
+  /// weighted sum of its faces' unit normals (zero where that sum is shorter than 1e-6): the direction
+  /// away from the deformer under the point. V must hold every vertex `corners` names.
+  void deform(const MatrixX3f& V, MatrixX3f& out, MatrixX3f* normals, Frames& frames) const;
+
+  const WrapBinding& binding() const { return binding_; }
+  int num_used_faces() const { return int(corners_.size() / 3); }
+
+ private:
+  WrapBinding binding_;
+  std::vector<int32_t> corners_;  // 3 per used face
+  std::vector<int32_t> slot_;     // per point and slot (row-major like binding.face): its used face
+  std::vector<float> weighted_;   // per point and slot: weight, then weight times local (3), then weight
+                                  // times rest_offset (3)
+};
 
 /// The frame of face f of (V, F): rows e1, e2, n (a rotation: R * (p - c) gives local coordinates);
 /// returns false (and the identity) for a face of zero area. `centroid` receives its centroid.

@@ -105,8 +105,11 @@ WindingNumberTree::WindingNumberTree(const MatrixX3f& V, const MatrixX3i& F, dou
   }
   nodes_.reserve(2 * triangles_.size() / kLeafSize + 2);
   build(0, static_cast<int32_t>(triangles_.size()), 0);
-  motion_.assign(nodes_.size(), std::numeric_limits<float>::infinity());
   compact();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (BoundsNode& b : bounds_) {  // no refit yet: unbounded
+    b.displacement = Eigen::AlignedBox3f(Eigen::Vector3f::Constant(-inf), Eigen::Vector3f::Constant(inf));
+  }
 }
 
 // Far field (Barill et al. 2018). The solid angle of a set of triangles seen from q is the flux of
@@ -133,13 +136,16 @@ float WindingNumberTree::QueryNode::solid_angle(const Eigen::Vector3f& r) const 
 
 void WindingNumberTree::compact() {
   query_nodes_.resize(nodes_.size());
+  bounds_.resize(nodes_.size());
   const double beta2 = beta_ * beta_;
 #pragma omp parallel for schedule(static, 256)
   for (int64_t n = 0; n < int64_t(nodes_.size()); ++n) {
     const Node& node = nodes_[size_t(n)];
     const FarField& far = node.far_field;
     QueryNode& q = query_nodes_[size_t(n)];
-    q.box = node.box;
+    BoundsNode& b = bounds_[size_t(n)];
+    b.box = node.box;
+    b.left = node.left, b.right = node.right, b.first = node.first, b.count = node.count;
     q.center = far.center.cast<float>();
     q.open2 = float(beta2 * node.radius * node.radius);
     q.normal_sum = far.normal_sum.cast<float>();
@@ -163,23 +169,23 @@ void WindingNumberTree::compact() {
     }
     q.w = w.cast<float>();
     for (int k = 0; k < 10; ++k) q.cubic[k] = float(cubic[k]);
-    q.motion = motion_[size_t(n)];
     q.left = node.left, q.right = node.right, q.first = node.first, q.count = node.count;
   }
 }
 
+template <typename Sum>
 Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
-  // Per-triangle terms in single precision (corners are single precision), sums in double: this runs
-  // over every triangle of the body at every refit, once per frame.
+  // Per-triangle terms in single precision (corners are single precision), sums in Sum: float over a
+  // leaf's few triangles, which every frame's refit fits; double over the many of a node the build fits.
+  using Vector = Eigen::Matrix<Sum, 3, 1>;
   const int32_t first = node.first, count = node.count;
   FarField& far = node.far_field;
   node.box.setEmpty();
   // First pass: bounds, area-weighted centroid and normal sum, and the bounds of the triangle
   // centroids, which choose the split.
   Eigen::AlignedBox3f centroid_box;
-  Eigen::Vector3d weighted_centroids = Eigen::Vector3d::Zero(), plain_centroids = Eigen::Vector3d::Zero();
-  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
-  double area = 0;
+  Vector weighted_centroids = Vector::Zero(), plain_centroids = Vector::Zero(), normal_sum = Vector::Zero();
+  Sum area = 0;
   for (int32_t t = first; t < first + count; ++t) {
     const Triangle& tri = triangles_[size_t(t)];
     node.box.extend(tri.a).extend(tri.b).extend(tri.c);
@@ -187,20 +193,23 @@ Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
     centroid_box.extend(centroid);
     const Eigen::Vector3f area_normal = 0.5f * (tri.b - tri.a).cross(tri.c - tri.a);  // a_t n_t
     const float triangle_area = area_normal.norm();
-    normal_sum += area_normal.cast<double>();
-    weighted_centroids += double(triangle_area) * centroid.cast<double>();
-    plain_centroids += centroid.cast<double>();
+    normal_sum += area_normal.cast<Sum>();
+    weighted_centroids += Sum(triangle_area) * centroid.cast<Sum>();
+    plain_centroids += centroid.cast<Sum>();
     area += triangle_area;
   }
-  far.normal_sum = normal_sum;
-  far.center = area > 0 ? Eigen::Vector3d(weighted_centroids / area) : Eigen::Vector3d(plain_centroids / count);
-  node.area = area;
+  far.normal_sum = normal_sum.template cast<double>();
+  far.center = area > 0 ? Eigen::Vector3d((weighted_centroids / area).template cast<double>())
+                        : Eigen::Vector3d((plain_centroids / Sum(count)).template cast<double>());
+  node.area = double(area);
 
   // Second pass, about the centre: moments and radius. Over a triangle with centroid x_t, the mean of
   // (x - c)(x - c)^T is S_t = d d^T + 1/12 sum_corners (v - x_t)(v - x_t)^T, d = x_t - c; symmetric,
   // kept as its 6 entries xx, yy, zz, xy, xz, yz.
   const Eigen::Vector3f center = far.center.cast<float>();
-  double first_moment[3][3] = {}, second_moment[3][6] = {};
+  // Row i of first_moment is M's row i; row i of second_moment Q_i's 6 entries.
+  Eigen::Matrix<Sum, 3, 3> first_moment = Eigen::Matrix<Sum, 3, 3>::Zero();
+  Eigen::Matrix<Sum, 3, 6> second_moment = Eigen::Matrix<Sum, 3, 6>::Zero();
   float radius2 = 0;
   for (int32_t t = first; t < first + count; ++t) {
     const Triangle& tri = triangles_[size_t(t)];
@@ -208,17 +217,16 @@ Eigen::AlignedBox3f WindingNumberTree::fit(Node& node) const {
     const Eigen::Vector3f centroid = (tri.a + tri.b + tri.c) / 3.0f, d = centroid - center;
     const Eigen::Vector3f ea = tri.a - centroid, eb = tri.b - centroid, ec = tri.c - centroid;
     const auto spread = [&](int i, int j) { return d[i] * d[j] + (ea[i] * ea[j] + eb[i] * eb[j] + ec[i] * ec[j]) / 12.0f; };
-    const float S[6] = {spread(0, 0), spread(1, 1), spread(2, 2), spread(0, 1), spread(0, 2), spread(1, 2)};
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) first_moment[i][j] += double(area_normal[i] * d[j]);
-      for (int k = 0; k < 6; ++k) second_moment[i][k] += double(area_normal[i] * S[k]);
-    }
-    radius2 = std::max({radius2, (tri.a - center).squaredNorm(), (tri.b - center).squaredNorm(),
-                        (tri.c - center).squaredNorm()});
+    Eigen::Matrix<float, 1, 6> S;
+    S << spread(0, 0), spread(1, 1), spread(2, 2), spread(0, 1), spread(0, 2), spread(1, 2);
+    first_moment += (area_normal * d.transpose()).template cast<Sum>();
+    second_moment += (area_normal * S).template cast<Sum>();
+    radius2 = std::max(radius2, std::max((tri.a - center).squaredNorm(),
+                                         std::max((tri.b - center).squaredNorm(), (tri.c - center).squaredNorm())));
   }
+  far.first_moment = first_moment.template cast<double>();
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) far.first_moment(i, j) = first_moment[i][j];
-    const double* q = second_moment[i];
+    const Eigen::Matrix<double, 1, 6> q = second_moment.row(i).template cast<double>();
     far.second_moment[i] << q[0], q[3], q[4], q[3], q[1], q[5], q[4], q[5], q[2];
   }
   // Rounded up by a relative 1e-6 so that single-precision rounding never makes it smaller than exact.
@@ -270,7 +278,7 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
   Node node;
   node.first = first;
   node.count = count;
-  const Eigen::AlignedBox3f centroid_box = fit(node);
+  const Eigen::AlignedBox3f centroid_box = count <= kLeafSize ? fit<float>(node) : fit<double>(node);
 
   const auto index = static_cast<int32_t>(nodes_.size());
   nodes_.push_back(node);
@@ -292,6 +300,8 @@ int32_t WindingNumberTree::build(int32_t first, int32_t count, int depth) {
 }
 
 double WindingNumberTree::winding_number(const Eigen::Vector3f& q) const {
+  AMT_CHECK(far_field_current_, "WindingNumberTree::winding_number: expected the far field of the last refit, "
+            "found it not yet updated (call update_far_field() after refit(V, false))");
   double omega = 0;  // total solid angle
   int32_t stack[kMaxStack];
   int top = 0;
@@ -339,7 +349,7 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const QueryNode& node = query_nodes_[size_t(stack[--top])];
+    const BoundsNode& node = bounds_[size_t(stack[--top])];
     if (static_cast<double>(node.box.squaredExteriorDistance(p)) >= best2) continue;
     if (node.is_leaf()) {
       for (int32_t t = node.first; t < node.first + node.count; ++t) {
@@ -352,8 +362,8 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
         }
       }
     } else {
-      const float d_left = query_nodes_[size_t(node.left)].box.squaredExteriorDistance(p);
-      const float d_right = query_nodes_[size_t(node.right)].box.squaredExteriorDistance(p);
+      const float d_left = bounds_[size_t(node.left)].box.squaredExteriorDistance(p);
+      const float d_right = bounds_[size_t(node.right)].box.squaredExteriorDistance(p);
       const bool left_first = d_left <= d_right;
       const int32_t near = left_first ? node.left : node.right, far = left_first ? node.right : node.left;
       const float d_near = std::min(d_left, d_right), d_far = std::max(d_left, d_right);
@@ -365,51 +375,73 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   return static_cast<float>(std::sqrt(best2));
 }
 
-void WindingNumberTree::refit(const MatrixX3f& V) {
+void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());
   AMT_CHECK(V.allFinite(), "WindingNumberTree::refit: V: expected finite positions");
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // of the vertex displacements, in double: #V terms
-  for (Eigen::Index i = 0; i < V.rows(); ++i) sum += (V.row(i) - vertices_.row(i)).transpose().cast<double>();
-  shift_ = V.rows() > 0 ? Eigen::Vector3f((sum / double(V.rows())).cast<float>()) : Eigen::Vector3f::Zero();
-  const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
-  // Leaves own disjoint triangle ranges: refresh their corners and fit them in parallel.
+  // Each vertex's displacement from its stored (previous) position; then the new position is stored.
+  displacement_ = V - vertices_;
+  vertices_ = V;
+  // What stays_clear() and distance() read is refitted on bounds_ alone (boxes, displacement boxes); the
+  // full nodes' boxes and expansions wait for update_far_field(). Leaves own disjoint triangle ranges:
+  // refresh their corners and boxes in parallel.
+  const int32_t num_nodes = static_cast<int32_t>(bounds_.size());
 #pragma omp parallel for schedule(dynamic, 32)
   for (int32_t n = 0; n < num_nodes; ++n) {
-    Node& node = nodes_[n];
+    BoundsNode& node = bounds_[size_t(n)];
     if (!node.is_leaf()) continue;
-    float motion2 = 0;  // the corners' displacements from their stored (previous) positions
+    node.box.setEmpty();
+    node.displacement.setEmpty();
     for (int32_t t = node.first; t < node.first + node.count; ++t) {
       Triangle& tri = triangles_[size_t(t)];
-      const Eigen::Vector3f a = V.row(faces_(tri.face, 0)).transpose(), b = V.row(faces_(tri.face, 1)).transpose(),
-                            c = V.row(faces_(tri.face, 2)).transpose();
-      motion2 = std::max({motion2, (a - tri.a - shift_).squaredNorm(), (b - tri.b - shift_).squaredNorm(),
-                          (c - tri.c - shift_).squaredNorm()});
-      tri.a = a, tri.b = b, tri.c = c;
+      const int32_t i = faces_(tri.face, 0), j = faces_(tri.face, 1), k = faces_(tri.face, 2);
+      tri.a = V.row(i).transpose(), tri.b = V.row(j).transpose(), tri.c = V.row(k).transpose();
+      node.box.extend(tri.a).extend(tri.b).extend(tri.c);
+      node.displacement.extend(displacement_.row(i).transpose())
+          .extend(displacement_.row(j).transpose())
+          .extend(displacement_.row(k).transpose());
     }
-    motion_[size_t(n)] = std::sqrt(motion2) * (1.0f + 1e-6f);
-    fit(node);
   }
   // Nodes are stored parent before children (pre-order), so a reverse sweep sees children first.
   for (int32_t n = num_nodes - 1; n >= 0; --n) {
-    if (nodes_[n].is_leaf()) continue;
-    merge_children(n);
-    motion_[size_t(n)] = std::max(motion_[size_t(nodes_[n].left)], motion_[size_t(nodes_[n].right)]);
+    BoundsNode& node = bounds_[size_t(n)];
+    if (node.is_leaf()) continue;
+    const BoundsNode &left = bounds_[size_t(node.left)], &right = bounds_[size_t(node.right)];
+    node.box = left.box.merged(right.box);
+    node.displacement = left.displacement.merged(right.displacement);
   }
-  vertices_ = V;
-  compact();
+  far_field_current_ = false;
+  if (far_field) update_far_field();
 }
 
-bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion) const {
-  if (!(point_motion >= 0) || !std::isfinite(point_motion)) return false;
+void WindingNumberTree::update_far_field() {
+  if (far_field_current_) return;
+  const int32_t num_nodes = static_cast<int32_t>(nodes_.size());
+#pragma omp parallel for schedule(dynamic, 32)
+  for (int32_t n = 0; n < num_nodes; ++n) {
+    if (nodes_[n].is_leaf()) fit<float>(nodes_[n]);
+  }
+  for (int32_t n = num_nodes - 1; n >= 0; --n) {
+    if (!nodes_[n].is_leaf()) merge_children(n);
+  }
+  compact();
+  far_field_current_ = true;
+}
+
+bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, const Eigen::Vector3f& displacement) const {
+  if (!displacement.allFinite()) return false;
   const Eigen::Vector3d q = to_double(p);
   int32_t stack[kMaxStack];
   int top = 0;
   stack[top++] = 0;
   while (top > 0) {
-    const QueryNode& node = query_nodes_[size_t(stack[--top])];
-    // 1 um of slack covers the rounding of the single-precision boxes; inf before the first refit.
-    const float reach = point_motion + node.motion + 1e-6f;
+    const BoundsNode& node = bounds_[size_t(stack[--top])];
+    // The farthest any of the node's corners moved relative to the point: to the farthest corner of its
+    // displacement box; 1 um of slack covers the rounding of the single-precision boxes. Infinite
+    // before the first refit.
+    const Eigen::Vector3f farthest =
+        (node.displacement.min() - displacement).cwiseAbs().cwiseMax((node.displacement.max() - displacement).cwiseAbs());
+    const float reach = farthest.norm() + 1e-6f;
     if (!(node.box.squaredExteriorDistance(p) > reach * reach)) {
       if (!node.is_leaf()) {
         stack[top++] = node.left;
@@ -427,6 +459,8 @@ bool WindingNumberTree::stays_clear(const Eigen::Vector3f& p, float point_motion
 }
 
 Eigen::VectorXd WindingNumberTree::winding_numbers(const MatrixX3f& P) const {
+  AMT_CHECK(far_field_current_, "WindingNumberTree::winding_numbers: expected the far field of the last refit, "
+            "found it not yet updated (call update_far_field() after refit(V, false))");
   Eigen::VectorXd w(P.rows());
 #pragma omp parallel for schedule(dynamic, 64)
   for (Eigen::Index i = 0; i < P.rows(); ++i) w[i] = winding_number(P.row(i).transpose());

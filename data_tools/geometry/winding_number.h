@@ -69,22 +69,34 @@ class WindingNumberTree {
   /// This is what the runtime does per frame instead of building a tree over the posed body.
   /// Throws amt::Error on a row count other than the construction's or on non-finite positions.
   ///
-  /// A refit also records how far the surface moved since the previous positions, for stays_clear().
-  void refit(const MatrixX3f& V);
+  /// A refit also records how far each vertex moved since the previous positions, for stays_clear().
+  ///
+  /// With far_field false only the triangles, boxes and displacements are refitted: distance() and
+  /// stays_clear() are then exact for V, while winding_number() and inside() throw until
+  /// update_far_field() has brought the expansions up to date (most of a refit's cost, which a caller
+  /// whose points all keep their verdicts through stays_clear() never pays).
+  void refit(const MatrixX3f& V, bool far_field = true);
 
-  /// Mean displacement of the surface's vertices in the last refit (zero after a build).
-  const Eigen::Vector3f& shift() const { return shift_; }
+  /// Refits the expansions to the positions of the last refit (nothing when they are current): after
+  /// it the tree is what refit(V) would have made of it.
+  void update_far_field();
 
-  /// True when a point now at p, which moved by at most `point_motion` metres relative to shift()
-  /// since the previous refit, cannot have met the surface meanwhile: with the point and every vertex
-  /// moving on straight lines over the same time, no triangle came within the point's path. Then
-  /// the point is on the same side of a closed surface as before (its winding number, an integer off
-  /// the surface, could not change). The test: every triangle T is farther from p than point_motion
-  /// plus the largest displacement of T's corners relative to shift(), checked top-down with the
-  /// subtrees' boxes and largest displacements; it stops at the first triangle too near. Always false
-  /// before the first refit. This is what lets the runtime skip the winding number of most apparel
-  /// vertices from one frame to the next (data_tools/garment/penetration_resolution.h).
-  bool stays_clear(const Eigen::Vector3f& p, float point_motion) const;
+  /// Whether the expansions are those of the current positions (false after refit(V, false) until
+  /// update_far_field()).
+  bool far_field_current() const { return far_field_current_; }
+
+  /// True when a point now at p, which moved by `displacement` since the previous refit, cannot have
+  /// met the surface meanwhile: with the point and every vertex moving on straight lines over the same
+  /// time, no triangle came within the point's path. Then the point is on the same side of a closed
+  /// surface as before (its winding number, an integer off the surface, could not change). The test, in
+  /// the frame that moves with the point (where it stands still): every triangle T is farther from p
+  /// than the largest displacement of T's corners less `displacement`, checked top-down with the
+  /// subtrees' boxes and the boxes of their corners' displacements; it stops at the first triangle too
+  /// near. Apparel that moves with the body near it keeps its verdicts however fast the body moves.
+  /// Always false before the first refit and for a non-finite displacement. This is what lets the
+  /// runtime skip the winding number of most apparel vertices from one frame to the next
+  /// (data_tools/garment/penetration_resolution.h).
+  bool stays_clear(const Eigen::Vector3f& p, const Eigen::Vector3f& displacement) const;
 
  private:
   // One triangle's corners, stored in tree order so that a leaf's triangles are contiguous.
@@ -115,14 +127,13 @@ class WindingNumberTree {
     bool is_leaf() const { return left < 0; }
   };
 
-  // What a query reads of a node: the far field contracted to the coefficients its evaluation uses, in
-  // single precision (152 bytes against the Node's 420), so that the hot part of a body's tree stays in
-  // cache. The flux of the expansion seen from q = center - r (FarField::solid_angle) only depends on
-  // the symmetric part of M and on the fully symmetrised Q:
+  // What a winding-number query reads of a node: the far field contracted to the coefficients its
+  // evaluation uses, in single precision (124 bytes against the Node's 420), so that the hot part of a
+  // body's tree stays in cache. The flux of the expansion seen from q = center - r (FarField::solid_angle)
+  // only depends on the symmetric part of M and on the fully symmetrised Q:
   //   r.N / |r|^3 + tr M / |r|^3 - 3 r^T M r / |r|^5 - 3/2 r.w / |r|^5 + 15/2 C(r) / |r|^7,
   //   w_k = 2 sum_i Q_iik + sum_j Q_kjj,   C(r) = sum_ijk Q_ijk r_i r_j r_k (10 monomial coefficients).
   struct QueryNode {
-    Eigen::AlignedBox3f box;
     Eigen::Vector3f center;
     float open2 = 0;             // (beta radius)^2: nearer than this the node is opened
     Eigen::Vector3f normal_sum;  // N
@@ -130,33 +141,44 @@ class WindingNumberTree {
     float m_sym[6] = {};         // M's symmetric part: xx, yy, zz, xy, xz, yz
     Eigen::Vector3f w;
     float cubic[10] = {};        // C's coefficients of x^3, x^2 y, x^2 z, x y^2, x y z, x z^2, y^3, y^2 z, y z^2, z^3
-    float motion = 0;            // largest corner displacement relative to shift_ in the last refit (inf: none yet)
     int32_t left = -1, right = -1, first = 0, count = 0;
     bool is_leaf() const { return left < 0; }
     // Solid angle of the subtree seen from q = center - r, by its second-order expansion.
     float solid_angle(const Eigen::Vector3f& r) const;
   };
 
+  // What distance(), stays_clear() and a refit without the far field read and write of a node (64 bytes,
+  // a cache line): its box and the box of its corners' displacements in the last refit (unbounded before
+  // the first), kept up to date by every refit.
+  struct BoundsNode {
+    Eigen::AlignedBox3f box, displacement;
+    int32_t left = -1, right = -1, first = 0, count = 0;
+    bool is_leaf() const { return left < 0; }
+  };
+
   // Builds the subtree over triangles_[first, first + count) and returns its node index.
   int32_t build(int32_t first, int32_t count, int depth);
 
   // Sets node's box, far field, radius and area from its triangles triangles_[first, first + count);
-  // returns the bounds of the triangle centroids (which choose the split).
+  // returns the bounds of the triangle centroids (which choose the split). Sums in Sum (float for a
+  // leaf, double for a larger node).
+  template <typename Sum>
   Eigen::AlignedBox3f fit(Node& node) const;
 
   // Sets inner node `index`'s box, far field, radius and area from its two (already fitted) children.
   void merge_children(int32_t index);
 
-  // Rewrites query_nodes_ from nodes_ (after a build or a refit).
+  // Rewrites query_nodes_ and bounds_ from nodes_ (after a build or a refit), all but the displacements.
   void compact();
 
   MatrixX3i faces_;     // the construction's F, for refit
   MatrixX3f vertices_;  // positions of the last build or refit, for the displacements of the next
-  Eigen::Vector3f shift_ = Eigen::Vector3f::Zero();
-  std::vector<float> motion_;  // per node: largest corner displacement relative to shift_ (inf: none yet)
+  MatrixX3f displacement_;  // refit's working space: per vertex its displacement
+  bool far_field_current_ = true;  // false between refit(V, false) and update_far_field()
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;
-  std::vector<QueryNode> query_nodes_;  // nodes_ as the queries read them, same indices
+  std::vector<QueryNode> query_nodes_;  // nodes_ as the winding-number queries read them, same indices
+  std::vector<BoundsNode> bounds_;       // nodes_' boxes and displacement boxes, same indices
   double beta_;
 };
 

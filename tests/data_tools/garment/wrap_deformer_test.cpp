@@ -1,5 +1,6 @@
 // The wrap deformer against hand-computed distances and weights, exact reproduction of the rest
-// shape, invariance under rigid motion, brute-force nearest faces, and bad input.
+// shape, invariance under rigid motion, brute-force nearest faces, the prepared deformer reading a
+// whole frame, and bad input.
 #include "data_tools/garment/wrap_deformer.h"
 
 #include <gtest/gtest.h>
@@ -115,6 +116,30 @@ TEST(WrapDeformer, RestShapeIsReproducedAndRigidMotionCarriedExactly) {
     const MatrixX3f expected = (s.points * R.transpose()).rowwise() + t;
     EXPECT_LT((wrap_deform(b, moved, s.body.F) - expected).cwiseAbs().maxCoeff(), 1e-5f);
   }
+}
+
+TEST(WrapDeformer, PreparedDeformerReadsTheFacesFromAWholeFrame) {
+  // The sphere's vertices at odd rows of a frame twice as long: the prepared deformer with its faces
+  // renumbered gives wrap_deform's points, and the sphere's outward normals under them.
+  const Scene s = sphere_scene(50, 5);
+  const WrapBinding b = wrap_register(s.body.V, s.body.F, s.points);
+  const Eigen::Matrix3f R = Eigen::AngleAxisf(0.4f, Vector3f(0, 1, 0)).toRotationMatrix();
+  const MatrixX3f moved = s.body.V * R.transpose();
+  MatrixX3f frame = MatrixX3f::Constant(2 * moved.rows(), 3, 7.0f);
+  for (Eigen::Index i = 0; i < moved.rows(); ++i) frame.row(2 * i + 1) = moved.row(i);
+  const MatrixX3i corners = 2 * s.body.F.array() + 1;
+  const WrapDeformer deformer(b, corners);
+  MatrixX3f out, normals;
+  WrapDeformer::Frames frames;
+  deformer.deform(frame, out, &normals, frames);
+  EXPECT_LT((out - wrap_deform(b, moved, s.body.F)).cwiseAbs().maxCoeff(), 1e-6f);
+  const Vector3f centre = R * Vector3f(0.1f, 1.0f, -0.2f);
+  for (Eigen::Index i = 0; i < out.rows(); ++i) {
+    EXPECT_NEAR(normals.row(i).norm(), 1.0f, 1e-5f);
+    EXPECT_GT(normals.row(i).dot((out.row(i) - centre.transpose()).normalized()), 0.95f);
+  }
+  EXPECT_NE(error_of([&] { WrapDeformer(b, corners.topRows(3)); }).find("binding: expected faces in [0, 3)"),
+            std::string::npos);
 }
 
 TEST(WrapDeformer, TriangleDistanceWeightsAreInverseToTheDistancesToTheFaces) {

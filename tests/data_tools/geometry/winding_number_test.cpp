@@ -11,13 +11,17 @@
 #include <random>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/shapes.h"
+#include "tests/test_support.h"
 
 namespace amt {
 namespace {
+
+using test::error_of;
 
 // Reorders every triangle of a convex mesh so that its normal points away from `center`.
 void orient_outward(TriMesh& mesh, const Eigen::Vector3f& center) {
@@ -228,6 +232,43 @@ TEST(WindingNumberRefit, MatchesAFreshBuildOnTheMovedSurface) {
   EXPECT_THROW(refitted.refit(sphere.V.topRows(10)), Error);
 }
 
+// refit(V, false) moves the triangles and boxes only: distances and stays_clear answer for V at once,
+// winding numbers refuse until update_far_field(), which then leaves the tree as a full refit does.
+TEST(WindingNumberRefit, DeferredFarFieldEndsAsAFullRefit) {
+  const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
+  const TriMesh sphere = icosphere(3, 0.6f, center);
+  MatrixX3f moved = sphere.V;
+  for (Eigen::Index i = 0; i < moved.rows(); ++i) moved(i, 0) += 0.2f * moved(i, 1) * moved(i, 1) + 0.05f;
+  WindingNumberTree full(sphere.V, sphere.F), deferred(sphere.V, sphere.F);
+  full.refit(moved);
+  deferred.refit(moved, false);
+  EXPECT_TRUE(full.far_field_current());
+  EXPECT_FALSE(deferred.far_field_current());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> offset(-1.0f, 1.0f);
+  const Eigen::Vector3f moving(0.02f, 0, 0);
+  std::vector<Eigen::Vector3f> points;
+  for (int k = 0; k < 100; ++k) points.push_back(center + Eigen::Vector3f(offset(rng), offset(rng), offset(rng)));
+  for (const Eigen::Vector3f& p : points) {
+    EXPECT_EQ(deferred.distance(p), full.distance(p));
+    EXPECT_EQ(deferred.stays_clear(p, moving), full.stays_clear(p, moving));
+  }
+  EXPECT_NE(error_of([&] { deferred.winding_number(points[0]); }).find("far field"), std::string::npos);
+  deferred.update_far_field();
+  EXPECT_TRUE(deferred.far_field_current());
+  for (const Eigen::Vector3f& p : points) EXPECT_EQ(deferred.winding_number(p), full.winding_number(p));
+  // Twice deferred, then brought up to date: still the full refit's tree.
+  deferred.refit(sphere.V, false);
+  deferred.refit(moved, false);
+  deferred.update_far_field();
+  full.refit(sphere.V);
+  full.refit(moved);
+  for (const Eigen::Vector3f& p : points) {
+    EXPECT_EQ(deferred.winding_number(p), full.winding_number(p));
+    EXPECT_EQ(deferred.stays_clear(p, moving), full.stays_clear(p, moving));
+  }
+}
+
 // The far field alone (a soup of 8 triangles, one leaf, seen from outside beta times its radius)
 // against the exact sum: the second-order expansion leaves an error of order (R / D)^3 relative to
 // the leading term, which falls as 1 / D^2, so the error falls about 32x when the distance doubles.
@@ -260,37 +301,41 @@ TEST(WindingNumber, FarFieldErrorIsThirdOrder) {
   }
 }
 
-// stays_clear: never before a refit; after a pure translation the surface did not move relative to
-// its shift, so only the point's own motion counts against its distance; after a growth about the
-// centre every corner moved 0.05 relative to a zero shift, which counts too.
+// stays_clear: never before a refit; after a pure translation a point that moved along keeps its
+// verdict however near the surface, one that did not is judged by the translation's length; after a
+// growth about the centre every corner moved 0.05 outwards, which counts against a point moving towards
+// the surface and for one moving away.
 TEST(WindingNumberStaysClear, BoundsTheMotionOfPointAndSurface) {
   const Eigen::Vector3f center(0.1f, -0.2f, 0.3f);
   const TriMesh sphere = icosphere(3, 0.5f, center);  // its polygon lies within 2 mm inside the sphere
   WindingNumberTree tree(sphere.V, sphere.F);
-  const Eigen::Vector3f up(0.0f, 1.0f, 0.0f);
-  EXPECT_FALSE(tree.stays_clear(center + 2.0f * up, 0.0f));
+  const Eigen::Vector3f up(0.0f, 1.0f, 0.0f), x(1.0f, 0.0f, 0.0f), zero = Eigen::Vector3f::Zero();
+  EXPECT_FALSE(tree.stays_clear(center + 2.0f * up, zero));
 
-  const Eigen::Vector3f u(0.1f, 0.0f, -0.05f);
+  const Eigen::Vector3f u(0.1f, 0.0f, -0.05f);  // 0.112 long
   MatrixX3f moved = sphere.V;
   moved.rowwise() += u.transpose();
   tree.refit(moved);
-  EXPECT_LT((tree.shift() - u).norm(), 1e-6f);
   const Eigen::Vector3f c1 = center + u;
+  // 0.01 to 0.012 from the moved surface: clear when it moved with it, not when it stood still.
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.51f * up, u));
+  EXPECT_FALSE(tree.stays_clear(c1 + 0.51f * up, zero));
   // 0.05 to 0.052 from the moved surface.
-  EXPECT_TRUE(tree.stays_clear(c1 + 0.55f * up, 0.045f));
-  EXPECT_FALSE(tree.stays_clear(c1 + 0.55f * up, 0.055f));
-  EXPECT_TRUE(tree.stays_clear(c1, 0.49f));  // the centre, 0.498 to 0.5 from everything
-  EXPECT_FALSE(tree.stays_clear(c1, 0.51f));
-  EXPECT_FALSE(tree.stays_clear(c1, std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.55f * up, u + 0.045f * x));
+  EXPECT_FALSE(tree.stays_clear(c1 + 0.55f * up, u + 0.055f * x));
+  EXPECT_TRUE(tree.stays_clear(c1, u + 0.49f * x));  // the centre, 0.498 to 0.5 from everything
+  EXPECT_FALSE(tree.stays_clear(c1, u + 0.51f * x));
+  EXPECT_FALSE(tree.stays_clear(c1, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN())));
 
-  // Grow by 10 % about the centre: the mean displacement is (nearly) zero, every corner moves 0.05.
+  // Grow by 10 % about the centre: every corner moves 0.05 away from it.
   MatrixX3f grown = moved;
   for (Eigen::Index i = 0; i < grown.rows(); ++i) grown.row(i) = c1.transpose() + 1.1f * (moved.row(i) - c1.transpose());
   tree.refit(grown);
-  EXPECT_LT(tree.shift().norm(), 1e-3f);
-  // 0.15 to 0.152 from the grown surface: clear for a point motion below 0.15 - 0.05 (less the shift).
-  EXPECT_TRUE(tree.stays_clear(c1 + 0.7f * up, 0.09f));
-  EXPECT_FALSE(tree.stays_clear(c1 + 0.7f * up, 0.11f));
+  // 0.15 to 0.152 from the grown surface's top: a point that came down by less than 0.15 - 0.05 is clear,
+  // and one that went up by 0.11 is clear as well.
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.7f * up, -0.09f * up));
+  EXPECT_FALSE(tree.stays_clear(c1 + 0.7f * up, -0.11f * up));
+  EXPECT_TRUE(tree.stays_clear(c1 + 0.7f * up, 0.11f * up));
 }
 
 // is_closed_surface (data_tools/geometry/mesh.h): closed and consistently oriented, or not.
