@@ -1,10 +1,13 @@
 #pragma once
 // The apparel segmentation module f_c (paper section 4.1): a PointNet on the rest vertex positions
-// that predicts, per vertex, the logit of the vertex being apparel (eq. 2).
+// (the paper's input) and, by default, per-vertex shape features of the mesh and skeleton
+// (data_tools/geometry/segmentation_features.h), that predicts, per vertex, the logit of the vertex
+// being apparel (eq. 2).
 #include <torch/nn/module.h>
 #include <torch/nn/pimpl.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "models/pointnet.h"
@@ -23,18 +26,27 @@ struct ApparelSegmenterOptions {
   /// Normalise V inside the network (centre on its bounding box, divide by its height), so callers
   /// pass rest positions in metres. When false, callers must normalise.
   bool normalize_input = true;
+  /// "shape": the rest positions and the kSegmentationFeatures shape features of each vertex (normal,
+  /// component share, distances to the skeleton and to the largest component); "positions": the
+  /// paper's input, the rest positions alone (checkpoints written before the choice existed).
+  std::string inputs = "shape";
 };
+
+/// Channels the segmenter reads per vertex beside its rest position (0 for "positions").
+int64_t segmenter_feature_channels(const ApparelSegmenterOptions& options);
 
 /// f_c: rest vertex positions -> apparel logits. p̂ = sigmoid(logits) (eq. 2).
 class ApparelSegmenterImpl : public torch::nn::Module {
  public:
   explicit ApparelSegmenterImpl(ApparelSegmenterOptions options = {});
 
-  /// V (B, N, 3) or (N, 3) rest positions, metres -> logits (B, N) or (N).
-  at::Tensor forward(const at::Tensor& V);
+  /// V (B, N, 3) or (N, 3) rest positions, metres, and with inputs "shape" their features (B, N, 6)
+  /// or (N, 6) (segmentation_features; ignored with "positions") -> logits (B, N) or (N).
+  at::Tensor forward(const at::Tensor& V, const at::Tensor& features = {});
 
-  /// V (B, N, 3) or (N, 3) -> p̂ (B, N) or (N), the probability of each vertex being apparel (eq. 2).
-  at::Tensor probabilities(const at::Tensor& V);
+  /// V (B, N, 3) or (N, 3) [, features] -> p̂ (B, N) or (N), the probability of each vertex being
+  /// apparel (eq. 2).
+  at::Tensor probabilities(const at::Tensor& V, const at::Tensor& features = {});
 
   ApparelSegmenterOptions options;
 

@@ -22,6 +22,7 @@
 #include "data_tools/geometry/error.h"
 #include "data_tools/builder/garment_pairs.h"
 #include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/metrics_torch.h"
 #include "models/apparel_dynamics.h"
 #include "models/edge_conv.h"
@@ -182,7 +183,39 @@ struct CharacterCache {
   std::optional<BodyPenetration> body;
   std::map<std::string, BoundCharacter> binds;
   std::optional<SegmentationScores> segmentation;
+  // Share of the bare body (largest connected part, segmented alone) called apparel.
+  double bare_apparel_share = std::nan("");
+  TriMesh mesh;           // the rest mesh and joints, for the bare body
+  MatrixX3f rest_joints;
 };
+
+// Share of a character's largest connected part called apparel when the segmenter sees that part
+// alone. A procedural character's pieces are separate parts, so that part is its naked body (the
+// builder's DressedCharacter lists the body's vertices first, as one component): what the
+// segmenter makes of a character that wears nothing.
+double bare_body_apparel_share(const ModelBundle& bundle, const CharacterCache& c) {
+  const Eigen::Index N = c.mesh.V.rows();
+  int count = 0;
+  const std::vector<int32_t> label = connected_components(static_cast<int>(N), c.E, &count);
+  std::vector<int32_t> size(static_cast<size_t>(count), 0);
+  for (const int32_t l : label) ++size[static_cast<size_t>(l)];
+  const int32_t largest = static_cast<int32_t>(std::max_element(size.begin(), size.end()) - size.begin());
+  std::vector<int32_t> index(static_cast<size_t>(N), -1);
+  MatrixX3f V(size[static_cast<size_t>(largest)], 3);
+  int32_t n = 0;
+  for (Eigen::Index i = 0; i < N; ++i) {
+    if (label[i] != largest) continue;
+    index[i] = n;
+    V.row(n++) = c.mesh.V.row(i);
+  }
+  std::vector<int32_t> faces;
+  for (Eigen::Index f = 0; f < c.mesh.F.rows(); ++f) {
+    const int32_t a = index[c.mesh.F(f, 0)], b = index[c.mesh.F(f, 1)], d = index[c.mesh.F(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
+  }
+  const MatrixX3i F = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+  return apparel_probabilities(bundle, V, F, c.rest_joints).gt(0.5).to(at::kDouble).mean().item<double>();
+}
 
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
                                                const std::string& subset, bool penetration) {
@@ -198,6 +231,8 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   c->gt_mask = at::from_blob(c->mask.data(), {N}, at::kByte).to(at::kBool);
   c->gt_weights = float_tensor(data.body_weights.data(), {N, J});
   c->E = unique_edges(data.mesh.F);
+  c->mesh = data.mesh;
+  c->rest_joints = data.skeleton.rest_joints;
   c->num_apparel = static_cast<int>(std::count_if(c->mask.begin(), c->mask.end(), [](uint8_t a) { return a != 0; }));
   if (penetration) {
     BodyPenetration body(data.mesh.V, data.mesh.F, c->mask);
@@ -363,6 +398,7 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
   result.rows = collect_rows(acc);
   result.clip_scores = acc.clip_scores;
   std::map<std::string, std::pair<SegmentationScores, int>> seg;
+  std::map<std::string, std::pair<double, int>> bare;
   for (const auto& c : cache) {
     CharacterScores cs;
     cs.character = c->name;
@@ -375,6 +411,10 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
       s.first.iou += cs.segmentation.iou, s.first.f1 += cs.segmentation.f1;
       s.first.precision += cs.segmentation.precision, s.first.recall += cs.segmentation.recall;
       ++s.second;
+      cs.bare_apparel_share = c->bare_apparel_share;
+      auto& b = bare[c->subset];
+      b.first += c->bare_apparel_share;
+      ++b.second;
     }
     for (const auto& [key, a] : acc.characters) {
       if (std::get<0>(key) == c->name) cs.scores[std::get<1>(key)][std::get<2>(key)] = a.result();
@@ -386,6 +426,7 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
     mean.iou /= s.second, mean.f1 /= s.second, mean.precision /= s.second, mean.recall /= s.second;
     result.segmentation[subset] = mean;
   }
+  for (const auto& [subset, b] : bare) result.bare_apparel_share[subset] = b.first / b.second;
   const auto to_curves = [](const std::map<std::pair<std::string, std::string>, Curve>& from,
                             std::vector<RolloutCurve>& to) {
     for (const auto& [key, curve] : from) {
@@ -690,7 +731,10 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       if (bound == c.binds.end())
         bound = c.binds.emplace(m.bind, bind_character(bundle, c.V, c.F, c.joints, bind_options_for(m.bind, c))).first;
       const BoundCharacter& b = bound->second;
-      if (m.bind == "predicted" && !c.segmentation) c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
+      if (m.bind == "predicted" && !c.segmentation) {
+        c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
+        c.bare_apparel_share = bare_body_apparel_share(bundle, c);
+      }
 
       if (m.stages == PipelineStages::kBodyOnly) {
         // Body only: frame t is LBS of motion[t] whatever the apparel history, so the paper protocol's
@@ -855,6 +899,10 @@ std::string evaluation_json(const EvaluationResult& result) {
     return Json{{"iou", number(s.iou)}, {"f1", number(s.f1)}, {"precision", number(s.precision)},
                 {"recall", number(s.recall)}};
   };
+  const auto bare_share = [&](const std::string& subset) {
+    const auto it = result.bare_apparel_share.find(subset);
+    return it == result.bare_apparel_share.end() ? Json(nullptr) : number(it->second);
+  };
   Json j;
   j["format"] = "amt-eval";
   j["version"] = 1;
@@ -880,12 +928,16 @@ std::string evaluation_json(const EvaluationResult& result) {
   }
   j["rows"] = rows;
   Json segmentation = Json::object();
-  for (const auto& [subset, s] : result.segmentation) segmentation[subset] = seg(s);
+  for (const auto& [subset, s] : result.segmentation) {
+    segmentation[subset] = seg(s);
+    segmentation[subset]["bare_body_apparel_share"] = bare_share(subset);
+  }
   j["segmentation"] = segmentation;
   Json characters = Json::array();
   for (const CharacterScores& c : result.characters) {
     Json cj{{"character", c.character}, {"subset", c.subset}, {"vertices", c.num_vertices},
-            {"apparel_vertices", c.num_apparel}, {"segmentation", seg(c.segmentation)}};
+            {"apparel_vertices", c.num_apparel}, {"segmentation", seg(c.segmentation)},
+                {"bare_body_apparel_share", number(c.bare_apparel_share)}};
     Json methods = Json::object();
     for (const auto& [method, protocols] : c.scores)
       for (const auto& [protocol, s] : protocols) methods[method][protocol] = scores(s);

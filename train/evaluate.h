@@ -83,6 +83,8 @@ struct CharacterScores {
   int num_vertices = 0, num_apparel = 0;
   /// Predicted mask (p̂ > 0.5) against the ground truth.
   SegmentationScores segmentation;
+  /// Share of the character's bare body (its largest connected part, segmented alone) called apparel.
+  double bare_apparel_share = std::nan("");
   /// method -> protocol -> scores, for the skinning baseline and the full model.
   std::map<std::string, std::map<std::string, MotionScores>> scores;
 };
@@ -113,6 +115,9 @@ struct EvaluationResult {
   std::vector<MethodScores> rows;
   /// subset -> segmentation scores averaged over its characters.
   std::map<std::string, SegmentationScores> segmentation;
+  /// subset -> share of the bare bodies' vertices called apparel (CharacterScores::bare_apparel_share),
+  /// averaged over its characters.
+  std::map<std::string, double> bare_apparel_share;
   std::vector<CharacterScores> characters;
   std::vector<RolloutCurve> curves;
   /// Paper protocol per horizon: pmd_a[k] is the mean PMD_a of the (k + 1)-th predicted frame of the

@@ -20,6 +20,7 @@ void visit(ApparelSegmenterOptions& o, Visitor&& v) {
   v("decoder_widths", o.decoder_widths);
   v("negative_slope", o.negative_slope);
   v("normalize_input", o.normalize_input);
+  v("inputs", o.inputs);
 }
 
 template <typename Visitor>
@@ -214,6 +215,14 @@ std::string skinning_file_stem(SkinningVariant variant) {
 
 void options_from_json(const std::string& text, const std::string& source, ApparelSegmenterOptions& options) {
   read_json(text, source, options);
+  // A checkpoint's options hold every field; one written before the shape features read positions
+  // alone. (A fragment such as --segmenter-options names a few fields and keeps the default.)
+  const Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+  const bool complete = j.is_object() && j.contains("encoder_widths") && j.contains("decoder_widths") &&
+                        j.contains("negative_slope") && j.contains("normalize_input");
+  if (complete && !j.contains("inputs")) options.inputs = "positions";
+  AMT_CHECK(options.inputs == "shape" || options.inputs == "positions", source,
+            ": options.inputs: expected \"shape\" or \"positions\", found \"", options.inputs, "\"");
 }
 void options_from_json(const std::string& text, const std::string& source, SkinningPredictorOptions& options) {
   read_json(text, source, options);

@@ -13,6 +13,8 @@
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/segmentation_features.h"
+#include "data_tools/geometry/skeleton.h"
 #include "models/edge_conv.h"
 #include "train/module_options.h"
 
@@ -202,6 +204,22 @@ void check_bundle_skeleton(const ModelBundle& bundle, const std::vector<std::str
 
 // === Bind
 
+at::Tensor apparel_probabilities(const ModelBundle& bundle, const MatrixX3f& V, const MatrixX3i& F,
+                                 const MatrixX3f& joints) {
+  torch::NoGradGuard no_grad;
+  at::Tensor shape_features;
+  if (segmenter_feature_channels(bundle.segmenter->options) > 0) {
+    // The bundle knows its joints by name: the canonical skeleton's bones, or (a model trained on
+    // another skeleton) distances to the joints themselves.
+    const std::vector<int32_t> parents = bundle.joint_names == canonical_joint_names()
+                                             ? canonical_joint_parents()
+                                             : std::vector<int32_t>(static_cast<size_t>(joints.rows()), -1);
+    shape_features = from_matrix(segmentation_features(V, F, joints, parents));
+  }
+  const at::Tensor V_t = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::kFloat);
+  return bundle.segmenter.ptr()->probabilities(V_t, shape_features).contiguous();
+}
+
 BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F,
                               const at::Tensor& joints, const BindOptions& options) {
   AMT_CHECK(V.defined() && V.dim() == 2 && V.size(1) == 3 && V.size(0) > 0,
@@ -226,7 +244,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   c.edges = edge_tensor(unique_edges(F_e));
 
   // Segmentation (eq. 2) and the mask in use.
-  c.apparel_prob = bundle.segmenter.ptr()->probabilities(c.V).contiguous();
+  c.apparel_prob = apparel_probabilities(bundle, V_e, F_e, joints_e);
   if (options.apparel_mask.defined()) {
     AMT_CHECK(options.apparel_mask.dim() == 1 && options.apparel_mask.size(0) == N,
               "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());

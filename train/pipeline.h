@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/types.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_dynamics.h"
 #include "models/apparel_segmenter.h"
@@ -148,6 +149,12 @@ struct BoundCharacter {
             apparel_contact_weights, apparel_ancestors};
   }
 };
+
+/// The segmenter's p̂ (N) (eq. 2) of a rest mesh (V, F) with rest joints on the bundle's skeleton (J, 3),
+/// its shape features computed here (segmentation_features). Throws amt::Error on a mesh without
+/// faces when the segmenter reads shape features. Runs without gradients.
+at::Tensor apparel_probabilities(const ModelBundle& bundle, const MatrixX3f& V, const MatrixX3i& F,
+                                 const MatrixX3f& joints);
 
 /// Binds a character to the model:
 ///   V (N, 3) float rest positions (metres), F (F, 3) int32/int64 faces, joints (J, 3) float rest

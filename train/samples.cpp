@@ -12,6 +12,7 @@
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/segmentation_features.h"
 #include "models/apparel_displacement.h"
 #include "models/edge_conv.h"
 
@@ -231,6 +232,11 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
                                                            t->body_ids, t->body_weights.index_select(0, t->body_ids));
     t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
                                      t->apparel_neighbors, t->body_weights.index_select(0, t->body_ids));
+    if (options_.kind == ModuleKind::kSegmenter) {
+      const MatrixXfR features =
+          segmentation_features(data.mesh.V, data.mesh.F, data.skeleton.rest_joints, data.skeleton.parents);
+      t->segmenter_features = float_tensor(features.data(), {N, kSegmentationFeatures});
+    }
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.
       std::vector<int32_t> body_index(N, -1);

@@ -68,6 +68,9 @@ struct CharacterTensors {
   /// G_body (N_b, J) float geodesic distances (metres) over the body mesh, the faces whose three
   /// vertices are body vertices (geodesic_distances); computed only for the skinning module, else undefined.
   at::Tensor G_body;
+  /// segmenter_features (N, kSegmentationFeatures) float shape features of the rest mesh
+  /// (segmentation_features); computed only for the segmenter, else undefined.
+  at::Tensor segmenter_features;
 };
 
 // === Samples

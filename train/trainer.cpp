@@ -384,7 +384,8 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       task.terms = {"bce"};
       const double pos_weight = o.segmenter_pos_weight;
       task.loss = [net, pos_weight](const TrainingSample& s, int64_t, bool) mutable {
-        const at::Tensor bce = apparel_bce_loss(net->forward(s.character->V), s.character->apparel_mask, pos_weight);
+        const at::Tensor bce = apparel_bce_loss(net->forward(s.character->V, s.character->segmenter_features),
+                                                s.character->apparel_mask, pos_weight);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
       };
       break;

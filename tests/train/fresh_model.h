@@ -43,6 +43,10 @@ inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t 
   ApparelSegmenterOptions so;
   so.encoder_widths = {16, 32};
   so.decoder_widths = {16};
+  // Positions alone: a fresh network on them splits a character into apparel and body, which the
+  // pipeline tests need; the shipped segmenter's shape features are bound in PretrainedModel and
+  // the command-line tests.
+  so.inputs = "positions";
   save_fresh_checkpoint((dir / "segmenter.ckpt").string(), ModuleKind::kSegmenter, ApparelSegmenter(so),
                         options_to_json(so), joints);
   SkinningPredictorOptions ko;

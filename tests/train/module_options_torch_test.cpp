@@ -142,8 +142,9 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   g.decoder_widths = {4};
   g.negative_slope = 0.0;
   g.normalize_input = false;
-  const char* segmenter_json =
-      R"({"encoder_widths": [1, 2, 3], "decoder_widths": [4], "negative_slope": 0.0, "normalize_input": false})";
+  g.inputs = "positions";
+  const char* segmenter_json = R"({"encoder_widths": [1, 2, 3], "decoder_widths": [4], "negative_slope": 0.0,
+      "normalize_input": false, "inputs": "positions"})";
   expect_written_as(g, segmenter_json);
   ApparelSegmenterOptions g2;
   options_from_json(segmenter_json, "x.ckpt", g2);
@@ -151,6 +152,31 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(g2.decoder_widths, (std::vector<int64_t>{4}));
   EXPECT_EQ(g2.negative_slope, 0.0);
   EXPECT_FALSE(g2.normalize_input);
+  EXPECT_EQ(g2.inputs, "positions");
+}
+
+TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
+  // A new segmenter reads the shape features; a checkpoint's options (every field) written before
+  // the choice existed read positions alone (the shipped segmenter of earlier rounds); a fragment
+  // such as --segmenter-options keeps the default; the choice survives a round trip.
+  EXPECT_EQ(ApparelSegmenterOptions{}.inputs, "shape");
+  ApparelSegmenterOptions old, fragment, round;
+  options_from_json(R"({"encoder_widths":[32,64,128],"decoder_widths":[64,32],"negative_slope":0.2,
+      "normalize_input":true})", "segmenter.ckpt", old);
+  EXPECT_EQ(old.inputs, "positions");
+  EXPECT_EQ(segmenter_feature_channels(old), 0);
+  options_from_json(R"({"encoder_widths":[8]})", "--segmenter-options", fragment);
+  EXPECT_EQ(fragment.inputs, "shape");
+  EXPECT_EQ(segmenter_feature_channels(fragment), 6);
+  options_from_json(options_to_json(old), "x.ckpt", round);
+  EXPECT_EQ(round.inputs, "positions");
+  ApparelSegmenterOptions bad;
+  try {
+    options_from_json(R"({"inputs":"colours"})", "x.ckpt", bad);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "x.ckpt: options.inputs: expected \"shape\" or \"positions\", found \"colours\"");
+  }
 }
 
 TEST(ModuleOptions, ApparelAnchorOfOldCheckpointsIsTheNearestBodyVertex) {
