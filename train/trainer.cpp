@@ -229,6 +229,8 @@ at::Generator window_generator(const TrainOptions& o, const TrainingSample& s, i
   return at::detail::createCPUGenerator(seed ^ stream * 0x94D049BB133111EBull);
 }
 
+}  // namespace
+
 // The local apparel module's loss on one sample at `step`: the curriculum's unroll length u, a rollout
 // of u frames from the window's 3 ground-truth states (the last one noised, the first target corrected:
 // add_history_noise), or, with --free-run, from the states the module itself reached after a prefix of
@@ -299,6 +301,8 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
   const at::Tensor edge = edge_length_loss(predicted, A_rest, c.apparel_edges);
   return {detail + o.weights.edge * edge, detail, edge};
 }
+
+namespace {
 
 // The normalisers of a fresh local apparel module: every one-step window (3 ground-truth states and
 // the next) of the first o.normalizer_samples training samples, then frozen.

@@ -141,6 +141,15 @@ int longest_unroll(const std::string& schedule);
 std::pair<at::Tensor, at::Tensor> add_history_noise(const at::Tensor& history, const at::Tensor& target,
                                                     const at::Tensor& noise, double gamma);
 
+struct TrainingSample;
+
+/// The local apparel module's loss terms {total, detail, edge} on one sample at 0-based `step`
+/// (train/trainer.cpp says how each window is rolled out); `validating` uses the longest unroll, no
+/// noise and no prefix. What `amt train apparel` minimises, exposed so that its targets can be checked
+/// against a hand-made clip.
+std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const TrainingSample& s, int64_t step,
+                                           bool validating, const TrainOptions& o);
+
 // === Training
 
 /// What a run did.

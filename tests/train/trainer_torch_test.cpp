@@ -19,6 +19,7 @@
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
 #include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/threads.h"
 #include "micro_dataset.h"
@@ -363,6 +364,77 @@ TEST(LocalApparel, InitStartsANewRunFromAnotherRunsNetwork) {
   const std::string error = error_of([&] { train_module(ModuleKind::kApparel, {split_dataset()}, both); });
   EXPECT_NE(error.find("--init"), std::string::npos) << error;
   EXPECT_NE(error.find("--resume"), std::string::npos) << error;
+}
+
+TEST(LocalApparel, TrainerTargetsAreTheNextFramesOfAHandMadeClip) {
+  // A hand-made clip: the body stands in its rest pose, the apparel drifts by an offset of its own in
+  // every frame (so that each frame's target is told apart from its neighbours'). On a body that does
+  // not move the anchors and their frames stay put, so a fresh network (zero output) with inertia 0.6
+  // predicts A_t = A_{t-1} + 0.6 (A_{t-1} - A_{t-2}) from its own states, starting from the window's 3
+  // ground-truth ones. The loss's detail term must be the mean distance (over the target scale) of those
+  // predictions from the window's frames 3 and 4, not from frames shifted by one.
+  test::use_one_thread();
+  const std::string path = (test_dir() / "hand_made_clip.h5").string();
+  const Skeleton skeleton = canonical_skeleton();
+  CharacterData character = capsule_example_character(skeleton, 300);
+  const int N = character.mesh.num_vertices(), T = 8;
+  for (int i = 0; i < N; ++i) character.apparel_mask[i] = character.body_weights(i, kPelvis) == 1.0f ? 1 : 0;
+  const auto offset = [](int t, int i) {
+    return Eigen::RowVector3f(0.001f * t * t, 0.002f * t + 0.0001f * (i % 7), -0.0005f * t * t * t);
+  };
+  {
+    DatasetWriter writer(path, 30.0f, skeleton.names);
+    writer.add_character(character);
+    ClipInfo clip;
+    clip.name = "drift";
+    clip.character = character.name;
+    clip.motion = "rest";
+    clip.split = "train";
+    writer.begin_clip(clip);
+    const Motion still = rest_motion(skeleton, T);
+    for (int t = 0; t < T; ++t) {
+      MatrixX3f frame = character.mesh.V;
+      for (int i = 0; i < N; ++i)
+        if (character.apparel_mask[i]) frame.row(i) += offset(t, i);
+      writer.append_frame(forward_kinematics(skeleton, still, t), frame);
+    }
+    writer.end_clip();
+    writer.commit();
+  }
+  TrainOptions o = tiny_options("hand_made_targets");
+  o.unroll = "2:1";
+  o.apparel_loss = "distance";
+  o.rest_start_fraction = 0;  // every window from its own 3 ground-truth states
+  ApparelDynamicsOptions options;
+  options.edge_widths = {6, 5};
+  options.decoder_widths = {4};
+  options.inertia = 0.6;
+  ApparelDynamicsNet net(options);
+  SampleSourceOptions so;
+  so.kind = ModuleKind::kApparel;
+  so.frames = 5;  // 3 states and the 2 unrolled frames
+  so.apparel_anchor = options.anchor;
+  SampleSource source({path}, so);
+  for (int64_t k = 0; k < 3; ++k) {
+    const TrainingSample sample = source.get(k);
+    const int f = sample.first_frame;  // the window's frames are f .. f + 4 of the clip
+    const at::Tensor scale2 = net->target_normalizer->scale.pow(2).sum();
+    double expected = 0;
+    int count = 0;
+    for (int i = 0; i < N; ++i) {
+      if (!character.apparel_mask[i]) continue;
+      const Eigen::RowVector3f rest = character.mesh.V.row(i);
+      const Eigen::RowVector3f a1 = rest + offset(f + 1, i), a2 = rest + offset(f + 2, i);
+      const Eigen::RowVector3f p3 = a2 + 0.6f * (a2 - a1), p4 = p3 + 0.6f * (p3 - a2);
+      for (const auto& [p, t] : {std::pair{p3, f + 3}, std::pair{p4, f + 4}}) {
+        expected += std::sqrt((p - (rest + offset(t, i))).squaredNorm() / scale2.item<double>() + 1e-12);
+        ++count;
+      }
+    }
+    expected /= count;
+    const std::vector<at::Tensor> terms = local_apparel_loss(net, sample, 0, /*validating=*/true, o);
+    EXPECT_NEAR(terms[1].item<double>(), expected, 1e-4 * expected) << "window at frame " << f;
+  }
 }
 
 TEST(LocalApparel, NormalisersAreSetBeforeTheFirstStepAndKeptByTheCheckpoint) {
