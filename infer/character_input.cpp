@@ -16,6 +16,7 @@
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/obj_io.h"
 #include "data_tools/formats/pmx_import.h"
+#include "data_tools/builder/pmx_physics.h"
 
 namespace amt {
 
@@ -191,6 +192,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     const DressedCharacter dressed = dress_character(body, uint64_t(seed));
     c.name = "generated_" + std::to_string(seed);
     c.mesh = dressed.mesh;
+    c.rig_apparel_mask = dressed.apparel_mask;
+    c.rig_apparel = "the dressed character's simulated apparel bones";
     c.file_skeleton = body.skeleton;
     c.rest = canonical_rest(c.file_skeleton, user_map, path);
     c.skeleton = c.rest.skeleton;
@@ -206,6 +209,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.mesh = std::move(data.mesh);
     c.file_skeleton = data.skeleton;
     c.apparel_mask = std::move(data.apparel_mask);
+    c.rig_apparel_mask = c.apparel_mask;
+    c.rig_apparel = "the dataset's ground truth";
     c.dataset = ds->first;
     c.dataset_character = ds->second;
   } else {
@@ -240,6 +245,14 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     } else if (e == ".pmx") {
       const PmxModel model = pmx_to_amt_frame(read_pmx(path), kPmxMetresPerUnit);
       c.mesh = pmx_mesh(model);
+      int simulated = 0;
+      std::vector<uint8_t> rig = pmx_physics_apparel_mask(model, &simulated);
+      const auto driven = std::count(rig.begin(), rig.end(), uint8_t(1));
+      if (driven > 0) {
+        c.rig_apparel_mask = std::move(rig);
+        c.rig_apparel = "PMX physics: " + std::to_string(driven) + " vertices on bones that " +
+                        std::to_string(simulated) + " simulated rigid bodies drive";
+      }
       Skeleton& s = c.file_skeleton;
       s.rest_joints.resize(Eigen::Index(model.bones.size()), 3);
       for (size_t b = 0; b < model.bones.size(); ++b) {

@@ -74,6 +74,9 @@ struct CharacterSpec {
 ///   file_skeleton   the file's own skeleton (canonical for a dataset character)
 ///   rest            how the canonical skeleton was made (mapping, placed and extra joints)
 ///   apparel_mask    the dataset's ground-truth mask (N entries 0/1) for a dataset character, else empty
+///   rig_apparel_mask  the apparel the character's own rig names (`--apparel-mask rig`; N entries 0/1), empty
+///                   when it names none: a PMX model's physics-driven vertices (pmx_physics_apparel_mask), a
+///                   dataset character's ground truth; `rig_apparel` says where it came from
 ///   dataset, dataset_character  the dataset file and character name ("" otherwise)
 struct RuntimeCharacter {
   std::string name;
@@ -82,6 +85,8 @@ struct RuntimeCharacter {
   Skeleton file_skeleton;
   CanonicalRest rest;
   std::vector<uint8_t> apparel_mask;
+  std::vector<uint8_t> rig_apparel_mask;
+  std::string rig_apparel;
   std::string dataset, dataset_character;
 };
 

@@ -179,7 +179,17 @@ AnimateSummary animate(const AnimateOptions& o) {
   const ModelBundle bundle = load_model_bundle(o.model_dir);
   check_bundle_skeleton(bundle, character.skeleton.names, o.model_dir);
   std::vector<uint8_t> mask_override;
-  if (!o.apparel_mask.empty()) mask_override = read_apparel_mask(o.apparel_mask, character.mesh.num_vertices());
+  s.apparel_source = "the segmenter";
+  if (o.apparel_mask == "rig") {
+    AMT_CHECK(!character.rig_apparel_mask.empty(), o.character.spec, ": --apparel-mask rig: the character's rig ",
+              "names no apparel (no simulated rigid bodies driving bones); expected a PMX model with physics, a ",
+              "dataset character or generated:SEED; use --apparel-mask model (the segmenter) or a mask file");
+    mask_override = character.rig_apparel_mask;
+    s.apparel_source = "the rig: " + character.rig_apparel;
+  } else if (!o.apparel_mask.empty() && o.apparel_mask != "model") {
+    mask_override = read_apparel_mask(o.apparel_mask, character.mesh.num_vertices());
+    s.apparel_source = "the file " + o.apparel_mask;
+  }
   const MotionPlayer player(source, character, o.playback);
   if (o.verbose) {
     std::cerr << "animate: character " << character.name << " (" << character.mesh.num_vertices() << " vertices, "
@@ -192,6 +202,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     std::cerr << "animate: motion " << source.name << " (" << source.motion.num_frames() << " frames at "
               << source.motion.fps << " fps)\n";
     if (!source.mapping.empty()) std::cerr << "animate: motion " << source.mapping << "\n";
+    std::cerr << "animate: apparel mask from " << s.apparel_source << "\n";
   }
   s.load_seconds = seconds_since(job_start);
 
@@ -323,9 +334,9 @@ std::string describe(const AnimateSummary& s) {
                 "frames: %d at %.4g fps (%.2f s of motion, after %d lead-in frames from the rest pose)%s\n", s.frames,
                 s.fps, s.frames / s.fps, s.lead_in, s.exact_motion ? ", dataset transforms as stored" : "");
   out << line;
-  std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%)\n", s.vertices, s.apparel_vertices,
-                100.0 * s.apparel_vertices / std::max(1, s.vertices));
-  out << line;
+  std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%, mask from ", s.vertices,
+                s.apparel_vertices, 100.0 * s.apparel_vertices / std::max(1, s.vertices));
+  out << line << s.apparel_source << ")\n";
   std::snprintf(line, sizeof(line), "bind: %.2f s (%s%s)\n", s.bind_seconds,
                 s.bind_cache_hit      ? "cache hit: "
                 : s.bind_path.empty() ? "no cache"

@@ -88,7 +88,8 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 ///   html_dir    when not empty, also a viewer folder (data_tools/formats/viewer_folder.h): prediction.glb and
 ///               skinning.glb (anchor_skinning_weights) side by side, opened with `amt view html_dir`;
 ///               viewer_dir is the repository's viewer/ its page is copied from
-///   apparel_mask  a mask file overriding the segmenter (read_apparel_mask), or empty
+///   apparel_mask  where the apparel mask comes from: "model" or empty (the segmenter), "rig" (the character's
+///               own rig: RuntimeCharacter::rig_apparel_mask), or a mask file (read_apparel_mask)
 struct AnimateOptions {
   CharacterSpec character;
   MotionSpec motion;
@@ -114,6 +115,8 @@ struct AnimateSummary {
   int frames = 0, lead_in = 0;
   float fps = 30.0f;
   int vertices = 0, apparel_vertices = 0;
+  /// Where the apparel mask came from ("the segmenter", "the rig: ...", "the file ...").
+  std::string apparel_source;
   std::string bind_path;
   bool bind_cache_hit = false;
   double bind_seconds = 0, load_seconds = 0, total_seconds = 0;

@@ -6,6 +6,52 @@
 
 namespace amt {
 
+std::vector<uint8_t> pmx_physics_apparel_mask(const PmxModel& model, int* drivers) {
+  const int B = static_cast<int>(model.bones.size());
+  // 1: a simulated body drives the bone; -1: a body that follows its bone holds it; 0: no body names it.
+  std::vector<int> held(static_cast<size_t>(B), 0);
+  int simulated = 0;
+  for (const PmxRigidBody& body : model.rigid_bodies) {
+    if (body.bone < 0 || body.bone >= B) continue;
+    if (body.mode == PmxPhysicsMode::kFollowBone) {
+      if (held[body.bone] == 0) held[body.bone] = -1;
+    } else {
+      held[body.bone] = 1;
+      ++simulated;
+    }
+  }
+  if (drivers) *drivers = simulated;
+  // A bone without a body of its own moves with its nearest ancestor that has one. Memoised walk up the parents
+  // (parents may follow their children in the file; a cycle, which the reader rejects, would stop at B steps).
+  std::vector<int> driven(static_cast<size_t>(B), -2);  // -2: not yet known
+  for (int b = 0; b < B; ++b) {
+    std::vector<int> path;
+    int k = b, result = 0;
+    for (int steps = 0; k >= 0 && k < B && steps <= B; ++steps) {
+      if (driven[k] != -2) {
+        result = driven[k];
+        break;
+      }
+      path.push_back(k);
+      if (held[k] != 0) {
+        result = held[k] > 0 ? 1 : 0;
+        break;
+      }
+      k = model.bones[k].parent;
+    }
+    for (const int p : path) driven[p] = held[p] != 0 ? (held[p] > 0 ? 1 : 0) : result;
+  }
+  const int N = model.vertices.size();
+  std::vector<uint8_t> mask(static_cast<size_t>(N), 0);
+  for (int i = 0; i < N; ++i) {
+    for (int s = 0; s < 4; ++s) {
+      const int bone = model.vertices.bone_indices(i, s);
+      if (bone >= 0 && bone < B && model.vertices.bone_weights(i, s) > 0.0f && driven[bone] == 1) mask[i] = 1;
+    }
+  }
+  return mask;
+}
+
 PhysicsRig pmx_physics_rig(const PmxModel& model) {
   AMT_CHECK(model.frame == PmxFrame::kMmd, model.source,
             ": pmx_physics_rig: expected a model in the file's frame (PMX units), found one converted to amt's");

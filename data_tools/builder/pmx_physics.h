@@ -2,6 +2,9 @@
 // The physics rig of a PMX model (data_tools/formats/pmx_import.h) for data_tools/builder/physics.h, in the file's own frame and
 // units (PmxFrame::kMmd), where MMD simulates it and where its tuned masses, damping and springs behave as authored
 // (DESIGN.md section 6). Simulated bone transforms are brought to amt's frame with pmx_transforms_to_amt.
+#include <cstdint>
+#include <vector>
+
 #include "data_tools/builder/physics.h"
 #include "data_tools/formats/pmx_import.h"
 
@@ -13,6 +16,14 @@ namespace amt {
 /// does). Throws amt::Error naming the model and the element for a frame other than kMmd, a joint type other than
 /// the spring 6-DOF of PMX 2.0, or a rig that fails validate_physics_rig (e.g. a simulated body of mass 0).
 PhysicsRig pmx_physics_rig(const PmxModel& model);
+
+/// The apparel a PMX model's physics rig implies (`amt animate --apparel-mask rig`, the PMX dataset's ground
+/// truth): 1 for every vertex with a non-zero weight on a physics-driven bone, else 0. A bone is physics-driven
+/// when a simulated rigid body (PmxPhysicsMode kDynamic or kDynamicWithBonePosition) names it, or when it hangs
+/// below such a bone without a body of its own that follows its bone (a chain's tip bone moves with the chain).
+/// `drivers`, when given, receives the number of simulated bodies that name a bone. Any frame; never throws on a
+/// valid model (bodies naming no bone, or a bone out of range, are skipped). All zeros when nothing is simulated.
+std::vector<uint8_t> pmx_physics_apparel_mask(const PmxModel& model, int* drivers = nullptr);
 
 /// MMD's world for a rig from pmx_physics_rig: gravity 98 PMX units/s^2 along -Y, Bullet's box margin of 0.04
 /// units (mmd_physics_settings).

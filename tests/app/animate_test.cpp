@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/builder/apparel.h"
+#include "data_tools/builder/body_generator.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/obj_io.h"
 #include "tests/app/amt_cli.h"
@@ -66,6 +68,35 @@ TEST(AnimateCommand, WritesTheFramesAskedForAsAGlbAndAnObjFolder) {
   // Again to the same folder: amt's own OBJ folder is replaced.
   test::expect_success(dir, animate("frames", {"--bind", "none"}));
   EXPECT_FALSE(fs::exists(dir / "frames.tmp"));
+}
+
+TEST(AnimateCommand, ApparelMaskFromTheRigTheSegmenterOrAFile) {
+  // A generated character's rig (its simulated apparel bones) against the segmenter and a file mask; the
+  // run says which it used and animates as many apparel vertices as that mask has.
+  const fs::path dir = test::temp_dir("animate_masks");
+  test::write_example_dataset(dir);
+  const DressedCharacter dressed = dress_character(generate_body(sample_body_params(5), int(2000 * 0.7)), 5);
+  const long rig = std::count(dressed.apparel_mask.begin(), dressed.apparel_mask.end(), uint8_t(1));
+  ASSERT_GT(rig, 0);
+  const auto generated = [](const std::string& out, const std::string& mask) {
+    std::vector<std::string> args = animate(out, {"--apparel-mask", mask});
+    *(std::find(args.begin(), args.end(), "--character") + 1) = "generated:5:2000";
+    return args;
+  };
+  const test::CommandResult from_rig = test::expect_success(dir, generated("rig.glb", "rig"));
+  EXPECT_NE(from_rig.out.find(", " + std::to_string(rig) + " apparel ("), std::string::npos) << from_rig.out;
+  EXPECT_NE(from_rig.out.find("mask from the rig: the dressed character's simulated apparel bones)"),
+            std::string::npos)
+      << from_rig.out;
+  const test::CommandResult from_model = test::expect_success(dir, generated("model.glb", "model"));
+  EXPECT_NE(from_model.out.find("mask from the segmenter)"), std::string::npos) << from_model.out;
+  {
+    std::ofstream mask(dir / "first.txt");
+    for (size_t i = 0; i < dressed.mesh.V.rows(); ++i) mask << (i < 5 ? "1 " : "0 ");
+  }
+  const test::CommandResult from_file = test::expect_success(dir, generated("file.glb", "first.txt"));
+  EXPECT_NE(from_file.out.find(", 5 apparel ("), std::string::npos) << from_file.out;
+  EXPECT_NE(from_file.out.find("mask from the file first.txt)"), std::string::npos) << from_file.out;
 }
 
 TEST(AnimateCommand, BadInputsAreOneLineErrorsNamingTheFileAndWriteNothing) {

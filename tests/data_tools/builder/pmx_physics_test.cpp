@@ -53,6 +53,40 @@ TEST(PmxPhysics, RigOfTheConstraintFixture) {
   EXPECT_EQ(pmx_physics_settings().gravity, Eigen::Vector3f(0, -98, 0));
 }
 
+TEST(PmxPhysics, ApparelMaskIsTheVerticesOfPhysicsDrivenBones) {
+  // The fixture: box 1 (vertices 0-23) on bone 0, which a body follows; box 2 (24-47) on bone 1, which a
+  // simulated body drives.
+  PmxModel model = read_pmx(fixture("constraint_test.pmx"));
+  int drivers = 0;
+  std::vector<uint8_t> mask = pmx_physics_apparel_mask(model, &drivers);
+  ASSERT_EQ(mask.size(), 48u);
+  EXPECT_EQ(drivers, 1);
+  for (int i = 0; i < 48; ++i) EXPECT_EQ(mask[i], i >= 24 ? 1 : 0) << "vertex " << i;
+  // A tip bone below the simulated bone (no body of its own) moves with it; one below the followed bone
+  // does not; a vertex with any weight on a driven bone is apparel.
+  PmxBone tip = model.bones[1], still = model.bones[0];
+  tip.parent = 1;
+  still.parent = 0;
+  model.bones.push_back(tip);    // bone 2
+  model.bones.push_back(still);  // bone 3
+  model.vertices.bone_indices.row(0) << 2, -1, -1, -1;
+  model.vertices.bone_indices.row(1) << 3, -1, -1, -1;
+  model.vertices.bone_indices.row(2) << 0, 1, -1, -1;
+  model.vertices.bone_weights.row(2) << 0.9f, 0.1f, 0, 0;
+  model.vertices.bone_indices.row(30) << 0, 1, -1, -1;
+  model.vertices.bone_weights.row(30) << 1.0f, 0.0f, 0, 0;  // a zero weight does not count
+  mask = pmx_physics_apparel_mask(model);
+  EXPECT_EQ(mask[0], 1);
+  EXPECT_EQ(mask[1], 0);
+  EXPECT_EQ(mask[2], 1);
+  EXPECT_EQ(mask[30], 0);
+  // Nothing simulated: no apparel.
+  for (PmxRigidBody& body : model.rigid_bodies) body.mode = PmxPhysicsMode::kFollowBone;
+  mask = pmx_physics_apparel_mask(model, &drivers);
+  EXPECT_EQ(drivers, 0);
+  EXPECT_EQ(std::count(mask.begin(), mask.end(), uint8_t(1)), 0);
+}
+
 TEST(PmxPhysics, MasksEulerAnglesAndSkippedJointsConvert) {
   PmxModel model = read_pmx(fixture("constraint_test4.pmx"));
   model.rigid_bodies[1].collision_mask = 0xFFFF & ~(1 << 3);
