@@ -1,6 +1,8 @@
 #include "data_tools/builder/dataset_preview.h"
 
 #include <algorithm>
+#include <cctype>
+#include <filesystem>
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/error.h"
@@ -10,6 +12,11 @@ namespace amt {
 
 int export_dataset_preview(const std::string& dataset_path, const std::string& out_path,
                            const DatasetPreviewOptions& options) {
+  std::string extension = std::filesystem::path(out_path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  AMT_CHECK(extension == ".glb" || extension == ".gltf", out_path, ": --out: expected a .glb or .gltf file, found ",
+            extension.empty() ? std::string("no extension") : "extension '" + extension + "'");
   const DatasetReader reader(dataset_path);
   AMT_CHECK(!reader.clip_names().empty(), dataset_path, ": /clips: expected at least one clip to preview, found none");
   const std::string clip = options.clip.empty() ? reader.clip_names().front() : options.clip;

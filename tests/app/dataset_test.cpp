@@ -115,7 +115,9 @@ TEST(DatasetPreviewCommand, BadInputsAreOneLineErrorsAndAFolderIsNeverReplaced) 
             {preview(data, "p.glb", {"--clip", "dance"}), {"ex.h5: /clips/dance: missing"}},
             {preview(data, "p.glb", {"--first-frame", "50"}), {"ex.h5: /clips/capsules_walk: first frame"}},
             {preview(data, "album.glb"),
-             {"album.glb: output: expected a regular file or no file to replace, found a folder"}}});
+             {"album.glb: output: expected a regular file or no file to replace, found a folder"}},
+            {preview(data, "p.txt"), {"p.txt: --out: expected a .glb or .gltf file, found extension '.txt'"}},
+            {preview(data, "p"), {"p: --out: expected a .glb or .gltf file, found no extension"}}});
 }
 
 }  // namespace
