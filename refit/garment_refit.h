@@ -35,8 +35,16 @@ struct GarmentRefitOptions {
   double field_band = 0.04;
   /// Outer (augmented Lagrangian) iterations of the inflation before giving up on t = 1.
   int max_outer_iterations = 30;
-  /// Newton's iteration limit and stopping tolerance in each solve.
-  NewtonOptions newton;
+  /// Newton's iteration limit and stopping rules in each solve: converged when no coordinate would move
+  /// by 10 µm, stalled after 3 iterations that lower the energy by less than 10⁻⁹ of itself.
+  NewtonOptions newton = refit_newton_options();
+
+  static NewtonOptions refit_newton_options() {
+    NewtonOptions o;
+    o.tolerance = 1e-5;
+    o.stall_iterations = 3;
+    return o;
+  }
 };
 
 /// One line of progress: an outer iteration of the inflation, or a Newton step of the garment fit.
