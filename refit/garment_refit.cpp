@@ -1,5 +1,6 @@
 #include "refit/garment_refit.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -53,6 +54,15 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
                                  const std::string& target_name) {
   // === Input
   check_mesh({garment, garment_F, Positions(0, 3)}, garment_name);
+  for (int f = 0; f < garment_F.rows(); ++f) {
+    const Eigen::RowVector3d a = garment.row(garment_F(f, 0)), b = garment.row(garment_F(f, 1)),
+                             c = garment.row(garment_F(f, 2));
+    // Zero area against the longest side: a repeated vertex or three points on a line.
+    const double longest = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    AMT_CHECK((b - a).cross(c - a).squaredNorm() > 1e-12 * longest * longest, garment_name, ": face ", f,
+              " (vertices ", garment_F(f, 0), ", ", garment_F(f, 1), ", ", garment_F(f, 2),
+              ") is degenerate, expected a triangle of non-zero area");
+  }
   check_mesh(source, source_name);
   check_mesh(target, target_name);
   const int num_joints = static_cast<int>(parents.size());
