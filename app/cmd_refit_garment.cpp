@@ -76,7 +76,20 @@ Avatar load_avatar(const CharacterSpec& spec, const char* option) {
     a.generated = std::move(body);
     return a;
   }
-  const RuntimeCharacter c = load_character(spec);
+  const RuntimeCharacter c = [&] {
+    try {
+      return load_character(spec);
+    } catch (const Error& e) {
+      // Name this command's options in load_character's hints (it speaks of amt animate's --character-*).
+      std::string message = e.what();
+      const std::string side = std::string(option).substr(2);  // "source" or "target"
+      for (const std::string hint : {"--character-joint-map", "--character-joints"}) {
+        const size_t at = message.find(hint);
+        if (at != std::string::npos) message.replace(at, hint.size(), "--" + side + hint.substr(11));
+      }
+      throw Error(message);
+    }
+  }();
   a.name = c.name;
   a.mesh = c.mesh;
   a.skeleton = c.skeleton;

@@ -88,8 +88,8 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
     const CollisionMesh mesh = make_garment_avatar_mesh(garment, garment_F, source.V, source.F);
     Positions x(mesh.num_vertices, 3);
     x << garment, source.V;
-    check_garment_avatar_start(mesh, x, static_cast<int>(garment_F.rows()), garment_name,
-                               "the source avatar (" + source_name + ")'s");
+    check_garment_avatar_start(mesh, x, static_cast<int>(garment_F.rows()), garment_name + " on " + source_name,
+                               "the source avatar's");
   }
   GarmentRefitResult result;
 

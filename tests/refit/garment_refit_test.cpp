@@ -128,8 +128,8 @@ TEST(RefitGarment, BadInputIsAOneLineErrorNamingTheFile) {
   // A garment that crosses the source avatar (its waist pulled in to 10 cm).
   Positions tight = garment;
   for (int k = 0; k < 16; ++k) tight.row(k).array() *= Eigen::Array3d(0.1 / 0.135, 1.0, 0.1 / 0.135).transpose();
-  EXPECT_NE(error_of(tight, F, source, target).find("skirt.obj: garment face "), std::string::npos);
-  EXPECT_NE(error_of(tight, F, source, target).find("crosses the source avatar (a.glb)'s face"), std::string::npos);
+  EXPECT_NE(error_of(tight, F, source, target).find("skirt.obj on a.glb: garment face "), std::string::npos);
+  EXPECT_NE(error_of(tight, F, source, target).find("crosses the source avatar's face"), std::string::npos);
   // A degenerate triangle: a vertex moved onto the middle of its face's opposite side.
   Positions flat = garment;
   flat.row(F(40, 0)) = 0.5 * (garment.row(F(40, 1)) + garment.row(F(40, 2)));
