@@ -29,6 +29,7 @@ namespace {
 
 struct RefitCommandOptions {
   std::string garment, out, picture;
+  float garment_share = 0.3f;  // a generated garment's share of the dressed mesh's vertices
   CharacterSpec source, target;
   refit::GarmentRefitOptions refit;
   bool quiet = false;
@@ -113,7 +114,7 @@ Avatar load_avatar(const CharacterSpec& spec, const char* option) {
 
 // A garment file, or "generated:KIND[:SEED]": the dataset builder's apparel piece of that kind dressed onto the
 // (generated) source avatar, without its apparel bones.
-TriMesh load_garment(const std::string& spec, const Avatar& source) {
+TriMesh load_garment(const std::string& spec, const Avatar& source, float garment_share) {
   if (spec.rfind("generated:", 0) == 0) {
     const std::string rest = spec.substr(10);
     const std::string kind_name = rest.substr(0, rest.find(':'));
@@ -133,7 +134,9 @@ TriMesh load_garment(const std::string& spec, const Avatar& source) {
     AMT_CHECK(source.generated.has_value(), "--garment ", spec,
               ": a generated garment is dressed onto the source avatar, expected --source generated:SEED, found ",
               source.name);
-    const DressedCharacter dressed = dress_character_with(*source.generated, {*kind}, seed);
+    ApparelOptions apparel;
+    apparel.vertex_fraction = garment_share;
+    const DressedCharacter dressed = dress_character_with(*source.generated, {*kind}, seed, apparel);
     const int first = source.mesh.num_vertices(), n = dressed.mesh.num_vertices() - first;
     TriMesh garment;
     garment.V = dressed.mesh.V.bottomRows(n);
@@ -185,7 +188,7 @@ void run(const RefitCommandOptions& o) {
   if (!o.picture.empty()) check_replaceable_file(o.picture);
   const Avatar source = load_avatar(o.source, "--source");
   const Avatar target = load_avatar(o.target, "--target");
-  const TriMesh garment = load_garment(o.garment, source);
+  const TriMesh garment = load_garment(o.garment, source, o.garment_share);
   AMT_CHECK(source.skeleton.parents == target.skeleton.parents, "--target ", o.target.spec,
             ": skeleton: its canonical joints' parents differ from the source's, expected the same skeleton");
   if (!o.quiet)
@@ -234,7 +237,7 @@ void run(const RefitCommandOptions& o) {
     const TriMesh before = dressed_mesh(source.mesh, garment.V, garment.F, &before_mask);
     const TriMesh after = dressed_mesh(target.mesh, fitted, garment.F, &after_mask);
     RenderOptions view;
-    view.width = 320;
+    view.width = 420;
     view.height = 480;
     view.world_height = 1.08f * std::max(before.V.col(1).maxCoeff(), after.V.col(1).maxCoeff());
     write_png(image_grid({render_character(before, before_mask, view), render_character(after, after_mask, view)}, 2),
@@ -246,12 +249,12 @@ void run(const RefitCommandOptions& o) {
                 "Newton iterations: %s)\n"
                 "  surface-shape distortion |tau1 x - tau2 x|: RMS %.4f, max %.4f over adjacent face pairs\n"
                 "  fit distance (mean |D| over the %d fitted vertices): %.2f mm on the source, %.2f mm on the target\n"
-                "  min distance garment-garment / garment-avatar: %.3f mm\n"
+                "  min distance garment-garment / garment-avatar: %.3f mm; crossing triangle pairs: %d\n"
                 "wrote %s\n",
                 o.garment.c_str(), o.target.spec.c_str(), seconds, r.shrink_seconds, r.inflation_seconds,
                 r.outer_iterations, r.fit_seconds, r.fit_iterations, r.fit_stop_reason.c_str(), r.distortion_rms,
                 r.distortion_max, r.fit_vertices, 1e3 * r.source_fit_distance, 1e3 * r.fit_distance,
-                1e3 * r.min_distance, o.out.c_str());
+                1e3 * r.min_distance, r.crossing_pairs, o.out.c_str());
   std::cout << summary << std::flush;
 }
 
@@ -279,6 +282,10 @@ void add_refit_garment_command(CLI::App& app) {
                   "builder's apparel piece of that kind (flared_skirt, pleated_skirt, sleeves, cape, ...) dressed "
                   "onto a generated source avatar")
       ->required();
+  cmd->add_option("--garment-share", o->garment_share,
+                  "A generated garment's share of the dressed source's vertices (its resolution)")
+      ->check(CLI::Range(0.05, 0.8))
+      ->capture_default_str();
   cmd->add_option("--source", o->source.spec,
                   "Avatar the garment was made for: .glb/.gltf (rigged), .obj (+ <name>.joints.json), .pmx, or "
                   "generated:SEED[:VERTICES] (a generated body without apparel, 3000 vertices by default)")

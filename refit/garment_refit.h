@@ -70,6 +70,7 @@ struct GarmentRefitResult {
   double distortion_rms = 0;      // |τ1 x - τ2 x| of L_surf over adjacent face pairs (0: the source shape): RMS
   double distortion_max = 0;      //   and largest
   double min_distance = 0;        // smallest garment-garment or garment-avatar distance at the end, metres
+  int crossing_pairs = 0;         // triangle pairs of the result that cross (triangle_intersections.h): 0
   double shrink_seconds = 0, inflation_seconds = 0, fit_seconds = 0;
 };
 

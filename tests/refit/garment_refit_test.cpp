@@ -75,6 +75,7 @@ TEST(RefitGarment, ASkirtOntoAWiderWaistEndsIntersectionFree) {
               mean_radius_at_waist(r.garment));
   EXPECT_GE(lines, r.outer_iterations);
   EXPECT_EQ(intersecting_pairs(r.garment, F, target), 0);
+  EXPECT_EQ(r.crossing_pairs, 0);
   EXPECT_GT(r.min_distance, 0.0);
   EXPECT_GT(mean_radius_at_waist(r.garment), 0.158);  // around the target's waist
   EXPECT_EQ(r.fit_vertices, 16);                       // the waist ring: 1.6 cm from the source, within 2 cm
