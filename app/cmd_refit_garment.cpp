@@ -44,14 +44,15 @@ struct Avatar {
   std::optional<GeneratedBody> generated;  // a generated:SEED avatar's body
 };
 
-refit::Positions to_double(const MatrixX3f& V) { return V.cast<double>(); }
+refit::Positions to_double(const MatrixX3f& V) {
+  return V.cast<double>();
+}
 
 // Weights of a mesh without its own: each vertex rigidly on the joint that drives its nearest bone (a joint
 // drives the bone towards its child, as in the generated bodies).
 SparseWeights nearest_bone_weights(const TriMesh& mesh, const Skeleton& skeleton) {
   const MatrixX2i bones = refit::skeleton_bones(skeleton.parents);
-  const std::vector<int> nearest =
-      refit::nearest_bones(to_double(mesh.V), to_double(skeleton.rest_joints), bones);
+  const std::vector<int> nearest = refit::nearest_bones(to_double(mesh.V), to_double(skeleton.rest_joints), bones);
   MatrixXfR W = MatrixXfR::Zero(mesh.num_vertices(), skeleton.num_joints());
   for (int v = 0; v < mesh.num_vertices(); ++v) W(v, bones(nearest[v], 0)) = 1.0f;
   return sparsify_weights(W);
@@ -194,8 +195,8 @@ void run(const RefitCommandOptions& o) {
   if (!o.quiet)
     std::cerr << "garment " << o.garment << ": " << garment.num_vertices() << " vertices, " << garment.num_faces()
               << " faces\nsource " << source.name << ": " << source.mesh.num_vertices() << " vertices\ntarget "
-              << target.name << ": " << target.mesh.num_vertices() << " vertices, "
-              << source.skeleton.num_joints() << " joints\n";
+              << target.name << ": " << target.mesh.num_vertices() << " vertices, " << source.skeleton.num_joints()
+              << " joints\n";
   const refit::RiggedMesh src{to_double(source.mesh.V), source.mesh.F, to_double(source.skeleton.rest_joints)};
   const refit::RiggedMesh tgt{to_double(target.mesh.V), target.mesh.F, to_double(target.skeleton.rest_joints)};
   const auto start = std::chrono::steady_clock::now();
@@ -219,8 +220,7 @@ void run(const RefitCommandOptions& o) {
   } else {
     std::vector<uint8_t> mask;
     const TriMesh dressed = dressed_mesh(target.mesh, fitted, garment.F, &mask);
-    const SparseWeights garment_weights =
-        refit::transfer_weights(r.garment, tgt.V, target.weights);
+    const SparseWeights garment_weights = refit::transfer_weights(r.garment, tgt.V, target.weights);
     SparseWeights weights;
     weights.indices.resize(dressed.num_vertices(), kMaxInfluences);
     weights.weights.resize(dressed.num_vertices(), kMaxInfluences);

@@ -42,7 +42,9 @@ AvatarDistanceField::AvatarDistanceField(const Positions& V, const MatrixX3i& F,
 AvatarDistanceField::~AvatarDistanceField() = default;
 AvatarDistanceField::AvatarDistanceField(AvatarDistanceField&&) noexcept = default;
 
-long long AvatarDistanceField::active_voxels() const { return static_cast<long long>(grid_->grid->activeVoxelCount()); }
+long long AvatarDistanceField::active_voxels() const {
+  return static_cast<long long>(grid_->grid->activeVoxelCount());
+}
 
 // By hand: OpenVDB's samplers (tools::BoxSampler) give the interpolated value, and its gradient operators
 // (math::ISGradient) central differences of the voxel values, which are not the derivative of that
@@ -51,7 +53,7 @@ double AvatarDistanceField::distance(const Eigen::Vector3d& p, Eigen::Vector3d* 
                                      Eigen::Matrix3d* hessian) const {
   const Eigen::Vector3d s = p / voxel_size_;  // index space: voxel (i, j, k) sits at (i, j, k) h
   const Eigen::Vector3d lower = s.array().floor();
-  const Eigen::Vector3d f = s - lower;        // in [0, 1)³
+  const Eigen::Vector3d f = s - lower;  // in [0, 1)³
   const openvdb::Coord c0{static_cast<int>(lower[0]), static_cast<int>(lower[1]), static_cast<int>(lower[2])};
   // The accessor caches the last leaf; one per call keeps the method thread-safe.
   const auto accessor = grid_->grid->getConstAccessor();

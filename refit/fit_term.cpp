@@ -7,7 +7,8 @@
 
 namespace amt::refit {
 
-std::vector<uint8_t> fit_region(const Positions& source, const AvatarDistanceField& source_avatar, double max_distance) {
+std::vector<uint8_t> fit_region(const Positions& source, const AvatarDistanceField& source_avatar,
+                                double max_distance) {
   std::vector<uint8_t> fit(source.rows(), 0);
   for (int v = 0; v < source.rows(); ++v)
     fit[v] = std::abs(source_avatar.distance(source.row(v).transpose())) <= max_distance;
@@ -52,7 +53,9 @@ double FitTerm::evaluate(const Positions& x, Eigen::VectorXd* gradient, std::vec
   return energy;
 }
 
-double FitTerm::value(const Positions& x) const { return evaluate(x, nullptr, nullptr, true); }
+double FitTerm::value(const Positions& x) const {
+  return evaluate(x, nullptr, nullptr, true);
+}
 
 double FitTerm::derivatives(const Positions& x, Eigen::VectorXd* gradient,
                             std::vector<Eigen::Triplet<double>>* hessian) const {

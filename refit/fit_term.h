@@ -25,8 +25,8 @@ class FitTerm : public Objective {
  public:
   /// field: the target avatar's (must outlive the term); source, F: the source garment (#Vˢ by 3, #F by
   /// 3); fit: #Vˢ mask of G_fit (fit_region); weight: w (the paper's w_fit = 2).
-  FitTerm(const AvatarDistanceField& field, const Positions& source, const MatrixX3i& F, const std::vector<uint8_t>& fit,
-          double weight = 2.0);
+  FitTerm(const AvatarDistanceField& field, const Positions& source, const MatrixX3i& F,
+          const std::vector<uint8_t>& fit, double weight = 2.0);
 
   double value(const Positions& x) const override;
   double derivatives(const Positions& x, Eigen::VectorXd* gradient,

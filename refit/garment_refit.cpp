@@ -59,8 +59,8 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
                              c = garment.row(garment_F(f, 2));
     // Zero area against the longest side: a repeated vertex or three points on a line.
     const double longest = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
-    AMT_CHECK((b - a).cross(c - a).squaredNorm() > 1e-12 * longest * longest, garment_name, ": face ", f,
-              " (vertices ", garment_F(f, 0), ", ", garment_F(f, 1), ", ", garment_F(f, 2),
+    AMT_CHECK((b - a).cross(c - a).squaredNorm() > 1e-12 * longest * longest, garment_name, ": face ", f, " (vertices ",
+              garment_F(f, 0), ", ", garment_F(f, 1), ", ", garment_F(f, 2),
               ") is degenerate, expected a triangle of non-zero area");
   }
   check_mesh(source, source_name);
@@ -116,12 +116,12 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
   inflation_options.weights = options.weights;
   inflation_options.max_outer_iterations = options.max_outer_iterations;
   inflation_options.newton = options.newton;
-  const InflationResult inflated = inflate_avatar(
-      garment, garment_F, shrunk, source.joints, target.joints, bones, inflation_options,
-      [&](const InflationProgress& p) {
-        if (progress)
-          progress({"inflation", p.outer_iteration, p.t, p.energy, p.min_distance, p.newton_iterations});
-      });
+  const InflationResult inflated =
+      inflate_avatar(garment, garment_F, shrunk, source.joints, target.joints, bones, inflation_options,
+                     [&](const InflationProgress& p) {
+                       if (progress)
+                         progress({"inflation", p.outer_iteration, p.t, p.energy, p.min_distance, p.newton_iterations});
+                     });
   result.outer_iterations = inflated.outer_iterations;
   result.inflation_seconds = seconds_since(start);
   AMT_CHECK(inflated.snapped, target_name, ": the inflation stopped at t = ", inflated.t, " after ",
@@ -143,7 +143,8 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
       fit_options,
       [&](const NewtonStep& s) {
         if (progress)
-          progress({"fit", step++, 1.0, s.energy, min_distance(*s.collisions, *s.after, 10 * options.weights.d_hat), 0});
+          progress(
+              {"fit", step++, 1.0, s.energy, min_distance(*s.collisions, *s.after, 10 * options.weights.d_hat), 0});
       },
       &report);
   result.fit_seconds = seconds_since(start);
@@ -170,7 +171,8 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
 
 // By hand: a nearest-vertex query over a few thousand points is one AABB-tree query per vertex, and the
 // refit library keeps to Eigen (no nanoflann).
-SparseWeights transfer_weights(const Positions& garment, const Positions& avatar_V, const SparseWeights& avatar_weights) {
+SparseWeights transfer_weights(const Positions& garment, const Positions& avatar_V,
+                               const SparseWeights& avatar_weights) {
   AMT_CHECK(avatar_weights.num_vertices() == avatar_V.rows(), "weight transfer: ", avatar_weights.num_vertices(),
             " weight rows for an avatar of ", avatar_V.rows(), " vertices");
   AMT_CHECK(avatar_V.rows() > 0, "weight transfer: the avatar has no vertices");

@@ -49,9 +49,9 @@ struct GarmentRefitOptions {
 
 /// One line of progress: an outer iteration of the inflation, or a Newton step of the garment fit.
 struct GarmentRefitProgress {
-  std::string stage;          // "inflation" or "fit"
+  std::string stage;  // "inflation" or "fit"
   int iteration = 0;
-  double t = 0.0;             // the inflation parameter (1 in the fit)
+  double t = 0.0;  // the inflation parameter (1 in the fit)
   double energy = 0.0;
   double min_distance = 0.0;  // metres, over the garment's pairs with itself and the avatar (+inf: none within 2 cm)
   int newton_iterations = 0;  // inflation: the inner solve's iterations
@@ -59,18 +59,18 @@ struct GarmentRefitProgress {
 
 /// The refit garment and what it cost.
 struct GarmentRefitResult {
-  Positions garment;              // #Vˢ by 3 on the target avatar
-  int shrunk_vertices = 0;        // vertices of the shrunk avatar (with the subdivision's)
-  int outer_iterations = 0;       // of the inflation
-  int fit_iterations = 0;         // Newton iterations of the garment fit
+  Positions garment;         // #Vˢ by 3 on the target avatar
+  int shrunk_vertices = 0;   // vertices of the shrunk avatar (with the subdivision's)
+  int outer_iterations = 0;  // of the inflation
+  int fit_iterations = 0;    // Newton iterations of the garment fit
   std::string fit_stop_reason;
-  int fit_vertices = 0;           // |G_fit|
-  double source_fit_distance = 0; // area-weighted mean |D| over G_fit on the source avatar, metres
-  double fit_distance = 0;        // the same on the target avatar after the refit
-  double distortion_rms = 0;      // |τ1 x - τ2 x| of L_surf over adjacent face pairs (0: the source shape): RMS
-  double distortion_max = 0;      //   and largest
-  double min_distance = 0;        // smallest garment-garment or garment-avatar distance at the end, metres
-  int crossing_pairs = 0;         // triangle pairs of the result that cross (triangle_intersections.h): 0
+  int fit_vertices = 0;            // |G_fit|
+  double source_fit_distance = 0;  // area-weighted mean |D| over G_fit on the source avatar, metres
+  double fit_distance = 0;         // the same on the target avatar after the refit
+  double distortion_rms = 0;       // |τ1 x - τ2 x| of L_surf over adjacent face pairs (0: the source shape): RMS
+  double distortion_max = 0;       //   and largest
+  double min_distance = 0;         // smallest garment-garment or garment-avatar distance at the end, metres
+  int crossing_pairs = 0;          // triangle pairs of the result that cross (triangle_intersections.h): 0
   double shrink_seconds = 0, inflation_seconds = 0, fit_seconds = 0;
 };
 
@@ -89,6 +89,7 @@ GarmentRefitResult refit_garment(const Positions& garment, const MatrixX3i& garm
 /// Skinning weights of the garment (#Vˢ by 3) from the avatar's (V #V by 3, weights over its joints):
 /// each garment vertex takes the weights of its nearest avatar vertex, as the dataset builder skins its
 /// body-connected apparel.
-SparseWeights transfer_weights(const Positions& garment, const Positions& avatar_V, const SparseWeights& avatar_weights);
+SparseWeights transfer_weights(const Positions& garment, const Positions& avatar_V,
+                               const SparseWeights& avatar_weights);
 
 }  // namespace amt::refit

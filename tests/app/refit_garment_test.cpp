@@ -21,10 +21,10 @@ namespace fs = std::filesystem;
 // `amt refit-garment` of `garment` from generated body 3 onto generated body 11 (about 2000 vertices each)
 // into `out`, plus `extra` (--quiet: only the one line of an error on stderr).
 std::vector<std::string> refit_args(const std::string& garment, const std::string& out,
-                               const std::vector<std::string>& extra = {}) {
-  std::vector<std::string> args = {"refit-garment", "--garment", garment,   "--source", "generated:3:2000",
-                                   "--target",      "generated:11:2000", "--out",   out,        "--threads",
-                                   "1"};
+                                    const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> args = {
+      "refit-garment", "--garment", garment,     "--source", "generated:3:2000", "--target", "generated:11:2000",
+      "--out",         out,         "--threads", "1"};
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
 }

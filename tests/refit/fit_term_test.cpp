@@ -86,7 +86,8 @@ TEST(FitTerm, GradientAndHessianMatchFiniteDifferences) {
   const double e = term.derivatives(patch.V, &g, nullptr);
   EXPECT_GT(e, 0.0);
   EXPECT_NEAR(e, term.value(patch.V), 1e-15);
-  const Eigen::VectorXd fd = test::fd_position_gradient([&](const Positions& x) { return term.value(x); }, patch.V, 1e-7);
+  const Eigen::VectorXd fd =
+      test::fd_position_gradient([&](const Positions& x) { return term.value(x); }, patch.V, 1e-7);
   EXPECT_LT(test::relative_error(g, fd), 1e-6);
   EXPECT_EQ(g.segment<3>(9).norm(), 0.0);
   // The exact Hessian of the interpolant against differences of the gradient.
@@ -114,7 +115,8 @@ TEST(FitTerm, IsTheAreaWeightedSquaredDistance) {
   // corner (the field of a plane is linear, so its interpolation is exact), and
   // L_fit = w Σ A_v D² = 2 (4e-4 m²) (5e-3 m)² = 2e-8.
   Positions cube(8, 3);
-  for (int v = 0; v < 8; ++v) cube.row(v) << 0.05 * ((v & 1) ? 1 : -1), 0.05 * ((v & 2) ? 1 : -1), 0.05 * ((v & 4) ? 1 : -1);
+  for (int v = 0; v < 8; ++v)
+    cube.row(v) << 0.05 * ((v & 1) ? 1 : -1), 0.05 * ((v & 2) ? 1 : -1), 0.05 * ((v & 4) ? 1 : -1);
   MatrixX3i cube_F(12, 3);
   cube_F << 0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3;
   const AvatarDistanceField field(cube, cube_F, 0.002, 0.01);

@@ -63,23 +63,24 @@ TEST(RefitGarment, ASkirtOntoAWiderWaistEndsIntersectionFree) {
   ASSERT_EQ(intersecting_pairs(garment, F, source), 0);
   ASSERT_GT(intersecting_pairs(garment, F, target), 0);  // as it is, the skirt would cut into the target
   int lines = 0;
-  const GarmentRefitResult r = refit_garment(garment, F, source, target, {-1, 0, 1}, {},
-                                             [&](const GarmentRefitProgress& p) {
-                                               ++lines;
-                                               EXPECT_GT(p.min_distance, 0.0) << p.stage << " " << p.iteration;
-                                             });
-  std::printf("skirt: %d outer iterations, %d fit iterations (%s), distortion RMS %.4f max %.4f, fit distance "
-              "%.2f -> %.2f mm over %d vertices, min distance %.3f mm, waist radius %.4f m\n",
-              r.outer_iterations, r.fit_iterations, r.fit_stop_reason.c_str(), r.distortion_rms, r.distortion_max,
-              1e3 * r.source_fit_distance, 1e3 * r.fit_distance, r.fit_vertices, 1e3 * r.min_distance,
-              mean_radius_at_waist(r.garment));
+  const GarmentRefitResult r =
+      refit_garment(garment, F, source, target, {-1, 0, 1}, {}, [&](const GarmentRefitProgress& p) {
+        ++lines;
+        EXPECT_GT(p.min_distance, 0.0) << p.stage << " " << p.iteration;
+      });
+  std::printf(
+      "skirt: %d outer iterations, %d fit iterations (%s), distortion RMS %.4f max %.4f, fit distance "
+      "%.2f -> %.2f mm over %d vertices, min distance %.3f mm, waist radius %.4f m\n",
+      r.outer_iterations, r.fit_iterations, r.fit_stop_reason.c_str(), r.distortion_rms, r.distortion_max,
+      1e3 * r.source_fit_distance, 1e3 * r.fit_distance, r.fit_vertices, 1e3 * r.min_distance,
+      mean_radius_at_waist(r.garment));
   EXPECT_GE(lines, r.outer_iterations);
   EXPECT_EQ(intersecting_pairs(r.garment, F, target), 0);
   EXPECT_EQ(r.crossing_pairs, 0);
   EXPECT_GT(r.min_distance, 0.0);
   EXPECT_GT(mean_radius_at_waist(r.garment), 0.158);  // around the target's waist
-  EXPECT_EQ(r.fit_vertices, 16);                       // the waist ring: 1.6 cm from the source, within 2 cm
-  EXPECT_LT(r.fit_distance, r.source_fit_distance);    // drawn onto the target
+  EXPECT_EQ(r.fit_vertices, 16);                      // the waist ring: 1.6 cm from the source, within 2 cm
+  EXPECT_LT(r.fit_distance, r.source_fit_distance);   // drawn onto the target
   EXPECT_LT(r.distortion_rms, 0.2);
 }
 
@@ -140,7 +141,7 @@ TEST(RefitGarment, BadInputIsAOneLineErrorNamingTheFile) {
   // NaN.
   Positions nan = garment;
   nan(7, 1) = std::nan("");
-  EXPECT_NE(error_of(nan, F, source, target).find("skirt.obj: vertex 7 is (") , std::string::npos);
+  EXPECT_NE(error_of(nan, F, source, target).find("skirt.obj: vertex 7 is ("), std::string::npos);
   // Skeletons that do not map: another joint count, a bone of zero length.
   RiggedMesh two = target;
   two.joints.conservativeResize(2, 3);
