@@ -24,6 +24,8 @@ void add_animate_command(CLI::App& app);
 void add_view_command(CLI::App& app);
 /// `amt retarget-cloth`: apparel motion from a source body onto a target body (infer/retarget_cloth.h).
 void add_retarget_cloth_command(CLI::App& app);
+/// `amt refit-garment`: a garment moved onto an avatar of other proportions, intersection-free (refit/).
+void add_refit_garment_command(CLI::App& app);
 
 /// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
 void add_threads_option(CLI::App& command);

@@ -38,30 +38,38 @@ Aabb edge_box(const CollisionMesh& mesh, const Positions& x, int e) {
 }
 
 // Pairs of vertex boxes against face boxes and of edge boxes against each other, filtered by incidence
-// and by the obstacle rule.
+// and by the obstacle rule. Obstacle vertices and edges are queried against trees of the free faces and
+// edges only, so that pairs of two obstacle primitives are never enumerated: the shrunk avatar of the
+// inflation lies on its bones, where every avatar box overlaps hundreds of others.
 Candidates candidates_from_boxes(const CollisionMesh& mesh, const std::vector<Aabb>& vertex_boxes,
-                                 std::vector<Aabb> face_boxes, std::vector<Aabb> edge_boxes) {
+                                 const std::vector<Aabb>& face_boxes, const std::vector<Aabb>& edge_boxes) {
   Candidates out;
-  std::vector<int> hits;
-  const AabbTree faces(std::move(face_boxes));
+  std::vector<int> hits, free_faces, free_edges;
+  std::vector<Aabb> free_face_boxes, free_edge_boxes;
+  for (int f = 0; f < static_cast<int>(mesh.F.rows()); ++f)
+    if (!mesh.face_obstacle[f]) free_faces.push_back(f), free_face_boxes.push_back(face_boxes[f]);
+  for (int e = 0; e < static_cast<int>(mesh.E.rows()); ++e)
+    if (!mesh.edge_obstacle[e]) free_edges.push_back(e), free_edge_boxes.push_back(edge_boxes[e]);
+  const AabbTree all_faces(face_boxes), faces_of_free(std::move(free_face_boxes));
   for (int v = 0; v < mesh.num_vertices; ++v) {
     hits.clear();
-    faces.query(vertex_boxes[v], &hits);
-    for (int f : hits) {
+    const bool obstacle = mesh.vertex_obstacle[v];
+    (obstacle ? faces_of_free : all_faces).query(vertex_boxes[v], &hits);
+    for (int hit : hits) {
+      const int f = obstacle ? free_faces[hit] : hit;
       if (face_has(mesh.F, f, v)) continue;
-      if (mesh.vertex_obstacle[v] && mesh.face_obstacle[f]) continue;
       out.point_triangle.push_back({v, f});
     }
   }
-  const std::vector<Aabb> query_boxes = edge_boxes;
-  const AabbTree edges(std::move(edge_boxes));
+  const AabbTree edges_of_free(std::move(free_edge_boxes));
   for (int a = 0; a < static_cast<int>(mesh.E.rows()); ++a) {
     hits.clear();
-    edges.query(query_boxes[a], &hits);
-    for (int b : hits) {
-      if (b <= a || edges_share_vertex(mesh.E, a, b)) continue;
-      if (mesh.edge_obstacle[a] && mesh.edge_obstacle[b]) continue;
-      out.edge_edge.push_back({a, b});
+    edges_of_free.query(edge_boxes[a], &hits);
+    for (int hit : hits) {
+      const int b = free_edges[hit];
+      // Two free edges meet in both queries: keep one. An obstacle edge meets a free one only in its own.
+      if ((!mesh.edge_obstacle[a] && b <= a) || edges_share_vertex(mesh.E, a, b)) continue;
+      out.edge_edge.push_back({std::min(a, b), std::max(a, b)});
     }
   }
   // Deterministic order, whatever the tree's traversal order.
@@ -177,7 +185,7 @@ Candidates proximity_candidates(const CollisionMesh& mesh, const Positions& x, d
     edge_boxes[e] = edge_box(mesh, x, e);
     edge_boxes[e].inflate(0.5 * inflation);  // two boxes grown by half each: overlap within `inflation`
   }
-  return candidates_from_boxes(mesh, vertex_boxes, std::move(face_boxes), std::move(edge_boxes));
+  return candidates_from_boxes(mesh, vertex_boxes, face_boxes, edge_boxes);
 }
 
 Candidates motion_candidates(const CollisionMesh& mesh, const Positions& x, const Positions& dx) {
@@ -199,7 +207,7 @@ Candidates motion_candidates(const CollisionMesh& mesh, const Positions& x, cons
     edge_boxes[e].extend(end.min);
     edge_boxes[e].extend(end.max);
   }
-  return candidates_from_boxes(mesh, vertex_boxes, std::move(face_boxes), std::move(edge_boxes));
+  return candidates_from_boxes(mesh, vertex_boxes, face_boxes, edge_boxes);
 }
 
 double min_distance_sq(const CollisionMesh& mesh, const Positions& x, const Candidates& candidates) {

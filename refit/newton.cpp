@@ -110,6 +110,7 @@ NewtonResult projected_newton(const std::vector<const Objective*>& terms,
     return result;
   }
   std::vector<Eigen::Triplet<double>> triplets;
+  int stalled = 0;  // consecutive iterations with a negligible decrease
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Positions x = map.at(*q);
     // Derivatives in x, carried to q: g_q = Jᵀ g_x, H_q = Jᵀ H_x J (PSD when H_x is).
@@ -156,6 +157,7 @@ NewtonResult projected_newton(const std::vector<const Objective*>& terms,
       return result;
     }
     *q = trial;
+    stalled = energy - trial_energy < options.stall_tolerance * std::abs(energy) ? stalled + 1 : 0;
     energy = trial_energy;
     result.energy = energy;
     result.iterations = iteration + 1;
@@ -171,6 +173,10 @@ NewtonResult projected_newton(const std::vector<const Objective*>& terms,
       step.after = &after;
       step.collisions = collisions;
       observer(step);
+    }
+    if (options.stall_iterations > 0 && stalled >= options.stall_iterations) {
+      result.stop_reason = "stalled";
+      return result;
     }
   }
   result.stop_reason = "iteration limit";

@@ -78,6 +78,11 @@ struct NewtonOptions {
   /// Converged when the Newton direction moves no coordinate by more than this (metres), IPC's
   /// stopping criterion ‖p‖∞ < ε.
   double tolerance = 1e-6;
+  /// Stop ("stalled") after this many consecutive iterations that each lowered the energy by less than
+  /// stall_tolerance times itself (0: never). Near a contact that the CCD bound keeps from closing, the
+  /// direction can stay above `tolerance` while the steps no longer change anything.
+  int stall_iterations = 0;
+  double stall_tolerance = 1e-9;
   /// Backtracking halvings of the step before giving up on an iteration.
   int max_backtracks = 50;
   /// Filter the line search by CCD (off only to show, in tests, what the filter prevents).
@@ -103,7 +108,7 @@ struct NewtonResult {
   int iterations = 0;
   double energy = 0.0;
   double direction_inf_norm = 0.0;
-  std::string stop_reason;  // "converged", "iteration limit", "line search failed"
+  std::string stop_reason;  // "converged", "stalled", "iteration limit", "line search failed"
 };
 
 /// Minimises the sum of `terms` over the positions *x (#V by 3), keeping the vertices with fixed[v] = 1

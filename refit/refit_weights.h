@@ -11,6 +11,7 @@ struct RefitWeights {
   double surface_weight = 1.0;      // on L_surf
   double positional_weight = 10.0;  // w_pos
   double curve_weight = 1.0;        // on L_curve
+  double fit_weight = 2.0;          // w_fit on L_fit (garment fit only, section 3.6)
 };
 
 }  // namespace amt::refit

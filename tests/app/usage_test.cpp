@@ -16,7 +16,9 @@ TEST(Usage, UnknownCommandsAndOptionsAndBadValuesAreOneLineErrors) {
   test::expect_errors_writing_nothing(
       dir,
       {{{}, {"A subcommand is required", "(amt --help lists the options)"}},
-       {{"frob"}, {"expected a command (dataset, train, eval, animate, bench, view, retarget-cloth), found 'frob'"}},
+       {{"frob"},
+        {"expected a command (dataset, train, eval, animate, bench, view, retarget-cloth, refit-garment), found "
+         "'frob'"}},
        {{"dataset", "frob"}, {"found 'frob'", "(amt dataset --help lists the options)"}},
        {{"animate", "--character", "x.glb", "--motion", "y.bvh", "--bogus"},
         {"not expected: --bogus", "(amt animate --help lists the options)"}},
