@@ -43,7 +43,8 @@ void report(const TrainResult& result) {
             << " samples/s, wall " << result.wall_seconds << " s";
   if (result.world_size > 1) {
     std::cout << ", " << result.world_size << " ranks, gradient exchange " << 1e3 * result.communication_seconds_per_step
-              << " ms/step";
+              << " ms/step (all-reduce of " << result.gradient_bytes / 1024 << " KiB "
+              << 1e3 * result.allreduce_seconds_per_step << ")";
   }
   if (!result.validation_losses.empty()) std::cout << ", val_loss " << result.validation_losses.back();
   std::cout << "; wrote";

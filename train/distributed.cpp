@@ -149,8 +149,9 @@ struct DataParallelGroup::State {
   c10::intrusive_ptr<c10d::Store> store;
   c10::intrusive_ptr<c10d::ProcessGroupGloo> group;
   int64_t same_checks = 0;
-  double communication_seconds = 0.0;
+  double communication_seconds = 0.0, allreduce_seconds = 0.0;
   int64_t communication_count = 0;
+  int64_t gradient_bytes = 0;
 
   // "data-parallel run tcp://host:port, rank 1 of 2".
   std::string where() const {
@@ -182,6 +183,12 @@ DataParallelGroup::DataParallelGroup(const DistributedOptions& options) : state_
   // them, so only fatal messages stay.
   FLAGS_minloglevel = std::max(FLAGS_minloglevel, static_cast<int32_t>(google::GLOG_FATAL));
   const bool tcp = s.rendezvous.scheme == "tcp";
+  if (!tcp) {
+    const std::filesystem::path folder = std::filesystem::absolute(s.rendezvous.path).parent_path();
+    std::error_code error;
+    AMT_CHECK(std::filesystem::is_directory(folder, error), "--rendezvous ", options.rendezvous, ": no folder ",
+              folder.string(), " (expected file://PATH in a folder every rank sees)");
+  }
   try {
     if (tcp) {
       c10d::TCPStoreOptions store_options;
@@ -316,13 +323,17 @@ void DataParallelGroup::average_gradients(const std::vector<at::Tensor>& paramet
     parts.push_back(has ? p.grad().detach().reshape({-1}) : at::zeros({p.numel()}, at::kFloat));
   }
   at::Tensor flat = parts.empty() ? at::zeros({0}, at::kFloat) : at::cat(parts);
+  // The small exchange first: it absorbs the wait for the slowest rank, so that the gradients' all-reduce
+  // after it measures the transfer alone.
+  Clock::time_point in_step;
   s.exchange("the gradient all-reduce of step " + std::to_string(step + 1), [&] {
-    std::vector<at::Tensor> gradients{flat}, others{side};
-    auto first = s.group->allreduce(gradients);
-    auto second = s.group->allreduce(others);
-    first->wait();
-    second->wait();
+    std::vector<at::Tensor> others{side}, gradients{flat};
+    s.group->allreduce(others)->wait();
+    in_step = Clock::now();
+    s.group->allreduce(gradients)->wait();
   });
+  s.allreduce_seconds += std::chrono::duration<double>(Clock::now() - in_step).count();
+  s.gradient_bytes = flat.numel() * static_cast<int64_t>(sizeof(float));
   const double n = static_cast<double>(s.options.world_size);
   flat.div_(n);
   for (size_t i = 0; i < values.size(); ++i) values[i] = side_data[i] / n;
@@ -347,6 +358,10 @@ void DataParallelGroup::barrier(const std::string& what) {
 }
 
 double DataParallelGroup::communication_seconds() const { return state_->communication_seconds; }
+
+double DataParallelGroup::allreduce_seconds() const { return state_->allreduce_seconds; }
+
+int64_t DataParallelGroup::gradient_bytes() const { return state_->gradient_bytes; }
 
 int64_t DataParallelGroup::communication_count() const { return state_->communication_count; }
 

@@ -84,7 +84,8 @@ class DataParallelGroup {
   /// After each rank's backward pass of step `step` (0-based): sets the gradient of each of `parameters`
   /// to the mean over ranks of their gradients (an undefined gradient counts as zeros; it stays undefined
   /// where no rank has one), and replaces each of `values` (the rank's loss terms) by their mean over
-  /// ranks. Two all-reduces: the gradients as one float buffer, the values and gradient flags as doubles.
+  /// ranks. Two all-reduces, one after the other: the values and gradient flags as doubles (where the
+  /// ranks wait for the slowest), then the gradients as one float buffer.
   void average_gradients(const std::vector<at::Tensor>& parameters, std::vector<double>& values, int64_t step);
 
   /// Waits until every rank has called it (`what` names what the ranks wait for, in the error message).
@@ -94,6 +95,10 @@ class DataParallelGroup {
   /// how many it made.
   double communication_seconds() const;
   int64_t communication_count() const;
+  /// Seconds of those spent in the gradients' all-reduce alone, which starts when the ranks are in step.
+  double allreduce_seconds() const;
+  /// Bytes of the last gradient all-reduce's buffer (4 per parameter).
+  int64_t gradient_bytes() const;
 
  private:
   struct State;

@@ -729,6 +729,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   SampleLoader loader(source, first_step * rank_batch, (o.steps - first_step) * rank_batch, o.loader_threads,
                       o.prefetch, SampleShare{rank_batch, world_size, rank});
   const double communication_start = group ? group->communication_seconds() : 0.0;
+  const double allreduce_start = group ? group->allreduce_seconds() : 0.0;
   const int64_t exchanges_start = group ? group->communication_count() : 0;
   const auto run_start = Clock::now();
   auto last_print = run_start;
@@ -807,8 +808,10 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   result.seconds_per_step = step_seconds / static_cast<double>(o.steps - first_step);
   result.samples_per_second = o.batch / result.seconds_per_step;
   if (group && group->communication_count() > exchanges_start) {
-    result.communication_seconds_per_step = (group->communication_seconds() - communication_start) /
-                                            static_cast<double>(group->communication_count() - exchanges_start);
+    const double exchanges = static_cast<double>(group->communication_count() - exchanges_start);
+    result.communication_seconds_per_step = (group->communication_seconds() - communication_start) / exchanges;
+    result.allreduce_seconds_per_step = (group->allreduce_seconds() - allreduce_start) / exchanges;
+    result.gradient_bytes = group->gradient_bytes();
   }
   if (!writes) result.checkpoint = result.log = "";
   return result;

@@ -170,9 +170,12 @@ struct TrainResult {
   /// checkpoints (seconds); samples per second at that rate; wall time of the whole run (seconds).
   double seconds_per_step = 0.0, samples_per_second = 0.0, wall_seconds = 0.0;
   /// The process's rank, the number of ranks, and the mean time per step of the gradient exchange (seconds,
-  /// included in seconds_per_step; 0 for one process). samples_per_second counts every rank's samples.
+  /// included in seconds_per_step, with the wait for the slowest rank; 0 for one process) and of its
+  /// all-reduce of the gradients alone. samples_per_second counts every rank's samples.
   int rank = 0, world_size = 1;
-  double communication_seconds_per_step = 0.0;
+  double communication_seconds_per_step = 0.0, allreduce_seconds_per_step = 0.0;
+  /// Bytes of the gradients exchanged each step (0 for one process).
+  int64_t gradient_bytes = 0;
 };
 
 /// Trains the module `kind` on the shards (resolve_shards) from step 0, or from options.resume, up

@@ -471,6 +471,10 @@ TEST(DataParallelTraining, BadOptionsGiveOneLineAndWriteNothing) {
            port + "'",
        1},
       {{"--world-size", "2", "--rank", "1"}, "amt: error: --rendezvous: expected tcp://HOST:PORT or file://PATH", 1},
+      {{"--world-size", "2", "--rank", "1", "--rendezvous", "file://no-such-folder/rendezvous"},
+       "amt: error: --rendezvous file://no-such-folder/rendezvous: no folder " + (dir / "no-such-folder").string() +
+           " (expected file://PATH in a folder every rank sees)",
+       1},
       // Rank 1 finds no rank 0 listening: the store is unreachable.
       {{"--world-size", "2", "--rank", "1", "--rendezvous", "tcp://127.0.0.1:" + port, "--dist-timeout", "1"},
        "amt: error: data-parallel run tcp://127.0.0.1:" + port +
