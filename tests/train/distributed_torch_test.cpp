@@ -408,6 +408,7 @@ TEST(DataParallelTraining, AKilledRankStopsTheOtherWithinTheTimeout) {
   EXPECT_EQ(finish(rank0), 1);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count();
   EXPECT_LT(seconds, 5.0) << "rank 0 took longer than --dist-timeout to stop";
+  std::cout << "rank 0 stopped " << seconds << " s after rank 1 was killed\n";
   const std::string err = text_of(rank0.err);
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_EQ(err.rfind("amt: error: data-parallel run " + rendezvous + ", rank 0 of 2: the gradient all-reduce of step ",
