@@ -4,8 +4,10 @@
 // rank of a data-parallel run (train/distributed.h).
 #include <cstdlib>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -30,6 +32,13 @@ struct TrainCommand {
   DistributedOptions distributed{0, -1, "", 300.0};
 };
 
+// Bytes in KiB with one decimal.
+std::string kibibytes(int64_t bytes) {
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(1) << static_cast<double>(bytes) / 1024.0;
+  return text.str();
+}
+
 // One line per run: the figures of the training speed benchmark (DESIGN.md section 7) and the files.
 void report(const TrainResult& result) {
   if (result.rank != 0) {
@@ -43,7 +52,7 @@ void report(const TrainResult& result) {
             << " samples/s, wall " << result.wall_seconds << " s";
   if (result.world_size > 1) {
     std::cout << ", " << result.world_size << " ranks, gradient exchange " << 1e3 * result.communication_seconds_per_step
-              << " ms/step (all-reduce of " << result.gradient_bytes / 1024 << " KiB "
+              << " ms/step (all-reduce of " << kibibytes(result.gradient_bytes) << " KiB "
               << 1e3 * result.allreduce_seconds_per_step << ")";
   }
   if (!result.validation_losses.empty()) std::cout << ", val_loss " << result.validation_losses.back();

@@ -48,8 +48,8 @@ for n in 1 2 4; do
   exchange=0 allreduce=0
   if [ "$n" -gt 1 ]; then
     exchange=$(sed -E 's/.*gradient exchange ([0-9.e+-]+) ms\/step.*/\1/' <<< "$line")
-    allreduce=$(sed -E 's/.*\(all-reduce of [0-9]+ KiB ([0-9.e+-]+)\).*/\1/' <<< "$line")
-    kib=$(sed -E 's/.*\(all-reduce of ([0-9]+) KiB.*/\1/' <<< "$line")
+    allreduce=$(sed -E 's/.*\(all-reduce of [0-9.]+ KiB ([0-9.e+-]+)\).*/\1/' <<< "$line")
+    kib=$(sed -E 's/.*\(all-reduce of ([0-9.]+) KiB.*/\1/' <<< "$line")
   fi
   printf "| %d | %.1f | %.1f | %.2f | %.2f |\n" "$n" "$rate" "$ms" "$exchange" "$allreduce"
   if [ "$n" -eq 1 ]; then compute=$ms; fi

@@ -1,6 +1,7 @@
 #include "train/distributed.h"
 
-// USE_C10D_GLOO (set for this file alone in train/CMakeLists.txt) enables ProcessGroupGloo.hpp.
+// ProcessGroupGloo.hpp needs USE_C10D_GLOO, which the Torch CMake target defines, and Gloo's headers
+// (libgloo-dev); libtorch_cpu holds the code.
 #include <ATen/ATen.h>
 #include <torch/csrc/distributed/c10d/FileStore.hpp>
 #include <torch/csrc/distributed/c10d/PrefixStore.hpp>
