@@ -156,11 +156,14 @@ void add_pairs_command(CLI::App& dataset) {
   });
 }
 
-// `amt dataset check DIR`: the quality gates of a built dataset (data_tools/builder/dataset_quality.h).
+// `amt dataset check DIR`: first whether the folder holds every shard its manifest names, once, whole (the union
+// of the --shard i/n processes' work; dataset_info.h), then the quality gates of the dataset
+// (data_tools/builder/dataset_quality.h).
 void add_check_command(CLI::App& dataset) {
   auto* check = dataset.add_subcommand(
-      "check", "Quality gates of a built dataset folder: apparel lag, explosions, jumps, penetration; variety "
-               "table and picture in a Markdown report");
+      "check", "Completeness of a built dataset folder (every character of manifest.json has its shard, whole, none "
+               "twice), then its quality gates: apparel lag, explosions, jumps, penetration; variety table and "
+               "picture in a Markdown report");
   check->alias("quality");
   auto dir = std::make_shared<std::string>();
   auto options = std::make_shared<QualityOptions>();
@@ -177,6 +180,14 @@ void add_check_command(CLI::App& dataset) {
               ": no such folder (expected a dataset folder written by amt dataset build)");
     AMT_CHECK(std::filesystem::is_directory(status), *dir,
               ": expected a dataset folder written by amt dataset build, found ", describe_file_type(status.type()));
+    if (std::filesystem::exists(std::filesystem::path(*dir) / "manifest.json", error)) {
+      const DatasetFolderSummary summary = summarise_dataset_folder(*dir);
+      print_dataset_completeness(summary, std::cout);
+      const int problems = summary.num_problems();
+      AMT_CHECK(problems == 0, *dir, ": incomplete: ", problems, " of ", summary.shards.size(),
+                " shards missing, damaged, duplicated or not in the manifest (listed above); the gates run on a "
+                "complete dataset");
+    }
     QualityOptions run = *options;
     if (run.report_dir.empty()) run.report_dir = (std::filesystem::path(*dir) / "quality").string();
     run.progress = &std::cerr;

@@ -1,9 +1,13 @@
 // `amt train segmenter|skinning|apparel|refiner|apparel_refiner|all`: trains the modules on dataset
 // shards (train/trainer.h), writing <out>/<module>.ckpt and <out>/<module>.csv, and prints the step
-// time and throughput of each run.
+// time and throughput of each run. With --world-size N (or torchrun's WORLD_SIZE), the process is one
+// rank of a data-parallel run (train/distributed.h).
+#include <cstdlib>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -23,13 +27,34 @@ struct TrainCommand {
   std::string segmenter_json, skinning_json, apparel_json, refiner_json;
   TrainOptions options;
   bool quiet = false;
+  // Data-parallel run as given on the command line (world_size 0, rank -1: not given; the environment
+  // may give them).
+  DistributedOptions distributed{0, -1, "", 300.0};
 };
+
+// Bytes in KiB with one decimal.
+std::string kibibytes(int64_t bytes) {
+  std::ostringstream text;
+  text << std::fixed << std::setprecision(1) << static_cast<double>(bytes) / 1024.0;
+  return text.str();
+}
 
 // One line per run: the figures of the training speed benchmark (DESIGN.md section 7) and the files.
 void report(const TrainResult& result) {
+  if (result.rank != 0) {
+    std::cout << "rank " << result.rank << " of " << result.world_size << ": steps " << result.first_step << " -> "
+              << result.last_step << ", " << 1e3 * result.seconds_per_step << " ms/step (gradient exchange "
+              << 1e3 * result.communication_seconds_per_step << " ms/step); rank 0 writes the files" << std::endl;
+    return;
+  }
   std::cout << std::filesystem::path(result.log).stem().string() << ": steps " << result.first_step << " -> "
             << result.last_step << ", " << 1e3 * result.seconds_per_step << " ms/step, " << result.samples_per_second
             << " samples/s, wall " << result.wall_seconds << " s";
+  if (result.world_size > 1) {
+    std::cout << ", " << result.world_size << " ranks, gradient exchange " << 1e3 * result.communication_seconds_per_step
+              << " ms/step (all-reduce of " << kibibytes(result.gradient_bytes) << " KiB "
+              << 1e3 * result.allreduce_seconds_per_step << ")";
+  }
   if (!result.validation_losses.empty()) std::cout << ", val_loss " << result.validation_losses.back();
   std::cout << "; wrote";
   for (const std::string& checkpoint : result.checkpoints) std::cout << " " << checkpoint;
@@ -39,6 +64,12 @@ void report(const TrainResult& result) {
 void run(const TrainCommand& command) {
   TrainOptions options = command.options;
   options.progress = !command.quiet;
+  const DistributedOptions distributed =
+      resolve_distributed_options(command.distributed, [](const char* name) { return std::getenv(name); });
+  // Joined before the runs and kept across them (amt train all trains four modules on one group).
+  std::unique_ptr<DataParallelGroup> group;
+  if (distributed.world_size > 1) group = std::make_unique<DataParallelGroup>(distributed);
+  options.group = group.get();
   NetworkOptions& networks = options.networks;
   if (!command.segmenter_json.empty())
     options_from_json(command.segmenter_json, "--segmenter-options", networks.segmenter);
@@ -184,6 +215,22 @@ void add_train_command(CLI::App& app) {
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   train->add_flag("--quiet", command->quiet, "No progress line on stderr");
+  DistributedOptions& d = command->distributed;
+  train
+      ->add_option("--world-size", d.world_size,
+                   "Data-parallel run: number of ranks (processes), each with --batch samples per step (default: "
+                   "WORLD_SIZE, else 1)")
+      ->check(CLI::PositiveNumber);
+  train->add_option("--rank", d.rank, "Data-parallel run: this process's rank in [0, world size) (default: RANK)")
+      ->check(CLI::NonNegativeNumber);
+  train->add_option("--rendezvous", d.rendezvous,
+                    "Data-parallel run: where the ranks meet, tcp://HOST:PORT (rank 0's address) or file://PATH (a "
+                    "new file every rank sees) (default: tcp://MASTER_ADDR:MASTER_PORT)");
+  train
+      ->add_option("--dist-timeout", d.timeout_seconds,
+                   "Data-parallel run: seconds to wait for every rank to join and for the others at each step before "
+                   "stopping with an error (rank 0's validation and checkpoints must fit in it)")
+      ->capture_default_str();
   add_threads_option(*train);
   train->callback([command] { run(*command); });
 }

@@ -8,6 +8,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   ccache                # a second checkout reuses the first one's objects (CMakeLists.txt)
   libtorch-dev          # LibTorch 1.13, CPU
+  libgloo-dev           # Gloo's headers, which c10d's ProcessGroupGloo.hpp includes (data-parallel training)
   libopenblas0-pthread  # LibTorch's BLAS: ~35x faster matrix products than the reference BLAS
   libeigen3-dev libtinygltf-dev libtinyobjloader-dev libhdf5-dev zlib1g-dev libcli11-dev
   libgtest-dev libbullet-dev nlohmann-json3-dev libnanoflann-dev

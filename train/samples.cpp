@@ -309,12 +309,17 @@ TrainingSample SampleSource::get(int64_t k) {
 
 // === SampleLoader
 
-SampleLoader::SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads, int prefetch)
+SampleLoader::SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads, int prefetch,
+                           SampleShare share)
     : source_(source),
+      share_(share),
       end_(first + count),
       prefetch_(std::max(1, prefetch)),
       next_to_read_(first),
       next_to_deliver_(first) {
+  AMT_CHECK(share_.batch >= 1 && share_.world_size >= 1 && share_.rank >= 0 && share_.rank < share_.world_size,
+            "training data: share: expected batch >= 1 and rank in [0, world size), found batch ", share_.batch,
+            ", rank ", share_.rank, " of ", share_.world_size);
   for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
 }
 
@@ -338,7 +343,7 @@ void SampleLoader::work() {
     TrainingSample sample;
     std::exception_ptr error;
     try {
-      sample = source_.get(k);
+      sample = source_.get(share_.sample(k));
     } catch (...) {
       error = std::current_exception();
     }
@@ -357,7 +362,7 @@ TrainingSample SampleLoader::next() {
   const int64_t k = next_to_deliver_;
   if (workers_.empty()) {
     ++next_to_deliver_;
-    return source_.get(k);
+    return source_.get(share_.sample(k));
   }
   std::unique_lock<std::mutex> lock(mutex_);
   changed_.wait(lock, [&] { return ready_.count(k) != 0 || errors_.count(k) != 0; });

@@ -163,15 +163,33 @@ class SampleSource {
   std::vector<std::unique_ptr<Readers>> pool_;
 };
 
+// === A rank's share
+
+/// Which samples one rank of a data-parallel run takes (train/distributed.h): at step s, rank r of W
+/// ranks with `batch` samples each takes samples s*W*batch + r*batch .. s*W*batch + r*batch + batch - 1
+/// of the sequence, so that the ranks take disjoint shares whose union is exactly the batch of W*batch
+/// samples one process takes at step s. The default is the whole sequence (one rank).
+struct SampleShare {
+  int batch = 1;
+  int world_size = 1;
+  int rank = 0;
+  /// The sequence index of the rank's j-th sample (j = step * batch + i).
+  int64_t sample(int64_t j) const {
+    return (j / batch) * static_cast<int64_t>(world_size) * batch + static_cast<int64_t>(rank) * batch + j % batch;
+  }
+};
+
 // === Prefetching loader
 
-/// Delivers samples first .. first + count - 1 of a source in order, read ahead by `threads` worker
-/// threads (0: read in next() on the calling thread) at most `prefetch` samples ahead. The sequence is
-/// that of source.get(k) whatever the threads do. The source must outlive the loader.
+/// Delivers the samples share.sample(j), j = first .. first + count - 1, of a source in order, read ahead
+/// by `threads` worker threads (0: read in next() on the calling thread) at most `prefetch` samples ahead.
+/// The sequence is that of source.get(share.sample(j)) whatever the threads do. The source must outlive
+/// the loader.
 class SampleLoader {
  public:
-  /// Starts `threads` workers on samples [first, first + count) of `source`.
-  SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads = 2, int prefetch = 8);
+  /// Starts `threads` workers on the rank's samples j in [first, first + count) of `source`.
+  SampleLoader(SampleSource& source, int64_t first, int64_t count, int threads = 2, int prefetch = 8,
+               SampleShare share = {});
   /// Stops and joins the workers.
   ~SampleLoader();
   SampleLoader(const SampleLoader&) = delete;
@@ -184,6 +202,7 @@ class SampleLoader {
   void work();
 
   SampleSource& source_;
+  SampleShare share_;
   int64_t end_;
   int prefetch_;
   std::mutex mutex_;

@@ -551,6 +551,9 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
                          const TrainOptions& options_in) {
   TrainOptions o = options_in;
   const char* mode = end_to_end ? kEndToEndMode : kSingleMode;
+  DataParallelGroup* group = o.group;
+  const int rank = group ? group->rank() : 0, world_size = group ? group->world_size() : 1;
+  if (rank != 0) o.progress = false;
   // The checkpoints resumed: the module's, or the apparel module's and the refiner's.
   std::vector<std::string> resume_paths;
   std::vector<ModuleKind> kinds = {kind};
@@ -589,6 +592,16 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   const std::vector<CheckpointInfo>& network_infos = resumed.empty() ? initial : resumed;
   const std::vector<std::string>& network_paths = resume_paths.empty() ? init_paths : resume_paths;
   AMT_CHECK(o.batch >= 1, "--batch: expected >= 1, found ", o.batch);
+  // Samples per step of each rank and of all ranks together (the config's batch). A resumed run splits
+  // its checkpoint's batch between the ranks.
+  int rank_batch = o.batch;
+  if (!resumed.empty()) {
+    AMT_CHECK(o.batch % world_size == 0, resume_paths[0], ": config.batch: the run takes ", o.batch,
+              " samples per step, which do not split evenly between --world-size ", world_size, " ranks");
+    rank_batch = o.batch / world_size;
+  } else {
+    o.batch = rank_batch * world_size;
+  }
   AMT_CHECK(o.window >= 4, "--window: expected >= 4 (3 history states and a target), found ", o.window);
   AMT_CHECK(o.skinning_frames >= 1, "--skinning-frames: expected >= 1, found ", o.skinning_frames);
   AMT_CHECK(o.learning_rate > 0, "--lr: expected > 0, found ", o.learning_rate);
@@ -657,11 +670,26 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   for (size_t i = 0; i < initial.size(); ++i) check_checkpoint_skeleton(init_paths[i], initial[i], joint_names);
   Task task = make_task(kind, end_to_end, network_infos, network_paths, o, static_cast<int64_t>(joint_names.size()),
                         joint_names);
-  std::error_code error;
-  std::filesystem::create_directories(o.out_dir, error);
-  AMT_CHECK(!error, o.out_dir, ": cannot create the output folder (", error.message(), ")");
+  CheckpointInfo info;
+  info.config_json = config_to_json(o, mode);
+  info.joint_names = joint_names;
+  info.data_fingerprint = source.fingerprint();
+  if (group) {
+    group->expect_same("the run (config, data fingerprint, steps)", info.config_json + " data " +
+                                                                         info.data_fingerprint + " steps " +
+                                                                         std::to_string(first_step) + ".." +
+                                                                         std::to_string(o.steps));
+  }
+  const bool writes = rank == 0;
+  if (writes) {
+    std::error_code error;
+    std::filesystem::create_directories(o.out_dir, error);
+    AMT_CHECK(!error, o.out_dir, ": cannot create the output folder (", error.message(), ")");
+  }
   TrainResult result;
   result.first_step = first_step;
+  result.rank = rank;
+  result.world_size = world_size;
   for (size_t i = 0; i < task.parts.size(); ++i) {
     Part& part = task.parts[i];
     part.optimizer = std::make_unique<torch::optim::AdamW>(
@@ -670,7 +698,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     if (!init_paths.empty()) load_checkpoint(init_paths[i], part.kind, *part.module, nullptr);
     part.module->train();
     part.checkpoint = (std::filesystem::path(o.out_dir) / (part.stem + ".ckpt")).string();
-    result.checkpoints.push_back(part.checkpoint);
+    if (writes) result.checkpoints.push_back(part.checkpoint);
   }
   const std::string name = task.log_stem;
   result.checkpoint = task.parts.back().checkpoint;
@@ -678,20 +706,36 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   std::string header = "step,loss";
   for (const auto& term : task.terms) header += "," + term;
   header += ",samples_per_s,seconds,val_loss";
-  prepare_log(result.log, header, first_step);
-  std::ofstream log(result.log, std::ios::app);
-  AMT_CHECK(log.good(), result.log, ": cannot append to the training log");
-  log << std::setprecision(9);
-
-  CheckpointInfo info;
-  info.config_json = config_to_json(o, mode);
-  info.joint_names = joint_names;
-  info.data_fingerprint = source.fingerprint();
+  std::ofstream log;
+  if (writes) {
+    prepare_log(result.log, header, first_step);
+    log.open(result.log, std::ios::app);
+    AMT_CHECK(log.good(), result.log, ": cannot append to the training log");
+    log << std::setprecision(9);
+  }
 
   if (first_step == 0 && task.prepare) task.prepare(source);
-  const std::vector<TrainingSample> validation = validation_set(shards, sampling, o, name);
+  // Every rank starts from rank 0's parameters and buffers (the normalisers among them).
+  std::vector<at::Tensor> parameters;
+  for (const Part& part : task.parts) {
+    for (const at::Tensor& p : part.module->parameters()) parameters.push_back(p);
+  }
+  if (group) {
+    std::vector<at::Tensor> state = parameters;
+    for (const Part& part : task.parts) {
+      for (const at::Tensor& b : part.module->buffers()) state.push_back(b);
+    }
+    torch::NoGradGuard no_grad;
+    group->broadcast_from_rank0(state);
+  }
+  const std::vector<TrainingSample> validation =
+      writes ? validation_set(shards, sampling, o, name) : std::vector<TrainingSample>{};
   const bool tty = isatty(fileno(stderr));
-  SampleLoader loader(source, first_step * o.batch, (o.steps - first_step) * o.batch, o.loader_threads, o.prefetch);
+  SampleLoader loader(source, first_step * rank_batch, (o.steps - first_step) * rank_batch, o.loader_threads,
+                      o.prefetch, SampleShare{rank_batch, world_size, rank});
+  const double communication_start = group ? group->communication_seconds() : 0.0;
+  const double allreduce_start = group ? group->allreduce_seconds() : 0.0;
+  const int64_t exchanges_start = group ? group->communication_count() : 0;
   const auto run_start = Clock::now();
   auto last_print = run_start;
   double step_seconds = 0.0;
@@ -705,12 +749,14 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       part.optimizer->zero_grad();
     }
     std::vector<double> values(task.terms.size() + 1, 0.0);
-    for (int b = 0; b < o.batch; ++b) {
+    for (int b = 0; b < rank_batch; ++b) {
       const TrainingSample sample = loader.next();
       const std::vector<at::Tensor> terms = task.loss(sample, step, /*validating=*/false);
-      (terms[0] / static_cast<double>(o.batch)).backward();
-      for (size_t i = 0; i < terms.size(); ++i) values[i] += terms[i].item<double>() / o.batch;
+      (terms[0] / static_cast<double>(rank_batch)).backward();
+      for (size_t i = 0; i < terms.size(); ++i) values[i] += terms[i].item<double>() / rank_batch;
     }
+    // The mean over the ranks' samples, as one process with all of them computes it.
+    if (group) group->average_gradients(parameters, values, step);
     AMT_CHECK(std::isfinite(values[0]), name, ": step ", step + 1, ": the loss is not finite (", values[0],
               "); lower --lr or check the data");
     for (Part& part : task.parts) part.optimizer->step();
@@ -728,14 +774,16 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     }
     const auto now = Clock::now();
     const double elapsed = std::chrono::duration<double>(now - run_start).count();
-    log << step + 1;
-    for (double v : values) log << "," << v;
-    log << "," << o.batch / seconds << "," << elapsed << ",";
-    if (validate) log << last_validation;
-    log << "\n";
-    log.flush();
-    AMT_CHECK(log.good(), result.log, ": write: expected to append step ", step + 1,
-              ", found a write error (disk full?)");
+    if (writes) {
+      log << step + 1;
+      for (double v : values) log << "," << v;
+      log << "," << o.batch / seconds << "," << elapsed << ",";
+      if (validate) log << last_validation;
+      log << "\n";
+      log.flush();
+      AMT_CHECK(log.good(), result.log, ": write: expected to append step ", step + 1,
+                ", found a write error (disk full?)");
+    }
 
     const int64_t done = step + 1 - first_step;
     if (o.progress && (last || std::chrono::duration<double>(now - last_print).count() >= 1.0)) {
@@ -749,7 +797,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
                    tty && !last ? "   " : "\n");
       std::fflush(stderr);
     }
-    if (last || (o.checkpoint_every > 0 && (step + 1) % o.checkpoint_every == 0)) {
+    if (writes && (last || (o.checkpoint_every > 0 && (step + 1) % o.checkpoint_every == 0))) {
       info.step = step + 1;
       for (Part& part : task.parts) {
         info.kind = part.kind;
@@ -758,10 +806,19 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       }
     }
   }
+  // The other ranks wait for rank 0's last checkpoint (a next run, as in amt train all, may read it).
+  if (group) group->barrier("rank 0's last checkpoint");
   result.wall_seconds = std::chrono::duration<double>(Clock::now() - run_start).count();
   result.last_step = o.steps;
   result.seconds_per_step = step_seconds / static_cast<double>(o.steps - first_step);
   result.samples_per_second = o.batch / result.seconds_per_step;
+  if (group && group->communication_count() > exchanges_start) {
+    const double exchanges = static_cast<double>(group->communication_count() - exchanges_start);
+    result.communication_seconds_per_step = (group->communication_seconds() - communication_start) / exchanges;
+    result.allreduce_seconds_per_step = (group->allreduce_seconds() - allreduce_start) / exchanges;
+    result.gradient_bytes = group->gradient_bytes();
+  }
+  if (!writes) result.checkpoint = result.log = "";
   return result;
 }
 

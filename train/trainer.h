@@ -16,6 +16,7 @@
 #include "models/losses.h"
 #include "models/skinning_predictor.h"
 #include "train/checkpoint.h"
+#include "train/distributed.h"
 
 namespace amt {
 
@@ -51,8 +52,10 @@ struct TrainOptions {
   /// (run) D of the cosine schedule; 0 takes `steps` of the run that starts (a run meant to stop
   /// early and resume later gives the final step count here).
   int64_t lr_decay_steps = 0;
-  /// (run) Samples per optimizer step; the loss is their mean (characters differ in size, so each
-  /// sample runs through the network on its own).
+  /// (run) Samples per optimizer step of each rank; the loss is their mean (characters differ in size, so
+  /// each sample runs through the network on its own). The checkpoint's config stores the samples per step
+  /// of all ranks together (batch times the world size); a resumed run takes that and splits it evenly
+  /// between its ranks, so it may resume with another number of ranks.
   int batch = 1;
   /// (run) T, frames per apparel / refiner window: 3 ground-truth history states, then T - 3 targets.
   int window = 10;
@@ -123,6 +126,13 @@ struct TrainOptions {
   bool progress = true;
   /// Networks of a fresh run.
   NetworkOptions networks;
+  /// The data-parallel run this process is a rank of (train/distributed.h; not owned, must outlive the
+  /// run), null for a process on its own. Every rank holds the model and takes a disjoint share of each
+  /// step's samples (SampleShare); the gradients are averaged over the ranks before the optimizer step, and
+  /// the parameters start from rank 0's. Rank 0 alone writes the checkpoints, the log, the validation and
+  /// the progress line; every rank reads the shards and a resumed checkpoint (a file system they share).
+  /// Every rank must run with the same settings and data (checked at the start).
+  DataParallelGroup* group = nullptr;
 };
 
 // === Local apparel training pieces
@@ -168,6 +178,13 @@ struct TrainResult {
   /// Mean time of an optimizer step including its wait for samples, without validation and
   /// checkpoints (seconds); samples per second at that rate; wall time of the whole run (seconds).
   double seconds_per_step = 0.0, samples_per_second = 0.0, wall_seconds = 0.0;
+  /// The process's rank, the number of ranks, and the mean time per step of the gradient exchange (seconds,
+  /// included in seconds_per_step, with the wait for the slowest rank; 0 for one process) and of its
+  /// all-reduce of the gradients alone. samples_per_second counts every rank's samples.
+  int rank = 0, world_size = 1;
+  double communication_seconds_per_step = 0.0, allreduce_seconds_per_step = 0.0;
+  /// Bytes of the gradients exchanged each step (0 for one process).
+  int64_t gradient_bytes = 0;
 };
 
 /// Trains the module `kind` on the shards (resolve_shards) from step 0, or from options.resume, up

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <vector>
 
@@ -77,6 +78,7 @@ void read_shard(const std::string& character, int clips, ShardSummary& shard) {
   try {
     const DatasetReader reader(shard.path);
     for (const std::string& name : reader.character_names()) shard.characters.add(reader.character_summary(name).split);
+    shard.character_names = reader.character_names();
     for (const std::string& name : reader.clip_names()) {
       const ClipInfo clip = reader.clip_info(name);
       shard.clips.add(clip.split);
@@ -92,6 +94,7 @@ void read_shard(const std::string& character, int clips, ShardSummary& shard) {
     shard.characters = {};
     shard.clips = {};
     shard.frames = 0;
+    shard.character_names.clear();
   }
 }
 
@@ -147,6 +150,8 @@ const char* shard_status_name(ShardStatus status) {
       return "damaged";
     case ShardStatus::kUnexpected:
       return "not in manifest";
+    case ShardStatus::kDuplicate:
+      return "duplicate";
   }
   return "?";
 }
@@ -174,26 +179,32 @@ DatasetFolderSummary summarise_dataset_folder(const std::string& dir) {
     if (error) shard.bytes = 0;
   };
   std::set<std::string> named;
+  std::map<std::string, std::string> shard_of;  // manifest character -> its shard's file name
   summary.has_manifest = fs::exists(fs::path(dir) / "manifest.json", error);
   if (summary.has_manifest) {
     const BuildManifest manifest = read_build_manifest(dir);
     summary.expected_characters = static_cast<int>(manifest.characters.size());
     summary.expected_clips_per_character = manifest.clips_per_character;
-    for (const PlannedCharacter& character : manifest.characters) {
+    for (size_t c = 0; c < manifest.characters.size(); ++c) {
+      const PlannedCharacter& character = manifest.characters[c];
       ShardSummary shard;
       shard.path = shard_path(dir, character.name);
+      shard.manifest_index = static_cast<int>(c);
       named.insert(shard.path);
+      shard_of[character.name] = fs::path(shard.path).filename().string();
       if (fs::is_regular_file(shard.path, error)) {
         measure_size(shard);
         read_shard(character.name, manifest.clips_per_character, shard);
       } else {
         shard.status = ShardStatus::kMissing;
         const std::string part = part_path(dir, character.name);
-        shard.problem = shard.path + ": missing" +
-                        (fs::exists(part, error) ? " (" + fs::path(part).filename().string() +
+        shard.problem = shard.path + ": missing (character " + std::to_string(c) + " of " +
+                        std::to_string(manifest.characters.size()) +
+                        ", made by the build process --shard i/n with i = " + std::to_string(c) + " mod n; " +
+                        (fs::exists(part, error) ? fs::path(part).filename().string() +
                                                        " holds the clips committed so far: a build is running or was "
                                                        "interrupted, rerun it to finish)"
-                                                 : "");
+                                                 : "rerun that process: finished shards are kept)");
       }
       summary.shards.push_back(shard);
     }
@@ -207,6 +218,14 @@ DatasetFolderSummary summarise_dataset_folder(const std::string& dir) {
     if (summary.has_manifest && shard.status == ShardStatus::kRead) {
       shard.status = ShardStatus::kUnexpected;
       shard.problem = file + ": not named by manifest.json (a shard of another build? training reads every *.h5 here)";
+      for (const std::string& name : shard.character_names) {
+        const auto it = shard_of.find(name);
+        if (it == shard_of.end()) continue;
+        shard.status = ShardStatus::kDuplicate;
+        shard.problem = file + ": holds " + name + " again, whose shard is " + it->second +
+                        " (a duplicate: training would draw it twice as often; remove it)";
+        break;
+      }
     }
     summary.shards.push_back(shard);
   }
@@ -235,7 +254,8 @@ void print_dataset_folder_summary(const DatasetFolderSummary& summary, std::ostr
   }
   Table shards({"shard", "characters", "clips", "frames", "size", "status"}, {false, false, false, true, true, false});
   for (const ShardSummary& shard : summary.shards) {
-    const bool read = shard.status == ShardStatus::kRead || shard.status == ShardStatus::kUnexpected;
+    const bool read = shard.status == ShardStatus::kRead || shard.status == ShardStatus::kUnexpected ||
+                      shard.status == ShardStatus::kDuplicate;
     shards.add({fs::path(shard.path).filename().string(),
                 read ? std::to_string(shard.characters.total()) + " " + shard.characters.text() : "-",
                 read ? std::to_string(shard.clips.total()) + " " + shard.clips.text() : "-",
@@ -255,6 +275,25 @@ void print_dataset_folder_summary(const DatasetFolderSummary& summary, std::ostr
   out << "missing, damaged or not in the manifest: " << problems << " of " << summary.shards.size() << " shards\n";
   for (const ShardSummary& shard : summary.shards) {
     if (shard.status != ShardStatus::kRead) out << "  " << shard.problem << "\n";
+  }
+}
+
+void print_dataset_completeness(const DatasetFolderSummary& summary, std::ostream& out) {
+  std::map<ShardStatus, int> count;
+  for (const ShardSummary& shard : summary.shards) ++count[shard.status];
+  out << "completeness: " << count_of(summary.expected_characters, "character") << " in manifest.json, "
+      << count_of(count[ShardStatus::kRead], "shard") << " whole";
+  if (summary.num_problems() == 0) {
+    out << ": complete (every character has its shard, none is duplicated)\n";
+    return;
+  }
+  for (const ShardStatus status :
+       {ShardStatus::kMissing, ShardStatus::kDamaged, ShardStatus::kDuplicate, ShardStatus::kUnexpected}) {
+    out << ", " << count[status] << " " << shard_status_name(status);
+  }
+  out << "\n";
+  for (const ShardSummary& shard : summary.shards) {
+    if (shard.status != ShardStatus::kRead) out << "  " << shard_status_name(shard.status) << ": " << shard.problem << "\n";
   }
 }
 

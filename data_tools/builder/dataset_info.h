@@ -36,9 +36,12 @@ enum class ShardStatus {
   kDamaged,
   /// Readable, but not named by the manifest.
   kUnexpected,
+  /// Readable, not named by the manifest, and holding a character of the manifest again (a copy, or the
+  /// same character built twice under another name): training would draw it twice as often.
+  kDuplicate,
 };
 
-/// "ok", "missing", "damaged" or "not in manifest".
+/// "ok", "missing", "damaged", "not in manifest" or "duplicate".
 const char* shard_status_name(ShardStatus status);
 
 /// One shard of a dataset folder and what reading it found.
@@ -52,12 +55,17 @@ struct ShardSummary {
   /// What the shard holds (zero unless it was read).
   SplitCounts characters, clips;
   int64_t frames = 0;
+  /// The characters it holds (empty unless it was read).
+  std::vector<std::string> character_names;
+  /// For a shard the manifest names: its character's index c there (the build process --shard i/n with
+  /// i = c mod n makes it); -1 otherwise.
+  int manifest_index = -1;
 };
 
 /// A dataset folder written by amt dataset build: every shard its manifest.json names, each opened and every
 /// character and clip checked as print_dataset_info does, plus any other *.h5 in the folder (a problem: training
-/// would read it, the manifest does not know it). A folder without manifest.json is summarised from its *.h5 files;
-/// then missing shards cannot be told.
+/// would read it, the manifest does not know it; a duplicate when it holds a character of the manifest). A folder
+/// without manifest.json is summarised from its *.h5 files; then missing shards cannot be told.
 struct DatasetFolderSummary {
   std::string dir;
   bool has_manifest = false;
@@ -82,5 +90,10 @@ DatasetFolderSummary summarise_dataset_folder(const std::string& dir);
 /// Prints the folder summary: what the manifest expects, one row per shard (splits, clips, frames, size, status),
 /// the totals, and every problem on a line of its own.
 void print_dataset_folder_summary(const DatasetFolderSummary& summary, std::ostream& out);
+
+/// Prints whether the shards of a folder with a manifest, built by one or many `--shard i/n` processes, add up to
+/// the dataset the manifest describes: "completeness: complete, ..." or one count line per kind of problem
+/// (missing, damaged, duplicate, not in the manifest) and every problem on a line of its own.
+void print_dataset_completeness(const DatasetFolderSummary& summary, std::ostream& out);
 
 }  // namespace amt

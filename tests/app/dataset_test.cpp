@@ -90,6 +90,38 @@ TEST(DatasetCheckCommand, AMissingFolderAFileAndAFolderWithoutShardsAreOneLineEr
             {{"dataset", "check", "mine"}, {"mine: no shard (expected *.h5 files written by amt dataset build)"}}});
 }
 
+// The shards of two build processes (--shard 0/2 and 1/2) into one folder: with one of them run, check names the
+// missing character and the process that makes it, and fails before the gates; with both, the folder is complete; a
+// copied shard is a duplicate.
+TEST(DatasetCheckCommand, ReportsTheShardsMissingFromTheUnionOfBuildProcesses) {
+  const fs::path dir = test::temp_dir("dataset_check_union");
+  test::expect_success(dir, test::tiny_build({{"--characters", "2"}, {"--shard", "0/2"}}));
+  const test::CommandResult half = test::run_amt(dir, {"dataset", "check", "data", "--threads", "1"});
+  EXPECT_EQ(half.status, 1) << half.err;
+  EXPECT_EQ(half.out.rfind("completeness: 2 characters in manifest.json, 1 shard whole, 1 missing, 0 damaged, 0 "
+                           "duplicate, 0 not in manifest\n  missing: data/character-0001.h5: missing (character 1 of 2, "
+                           "made by the build process --shard i/n with i = 1 mod n; rerun that process",
+                           0),
+            0u)
+      << half.out;
+  EXPECT_EQ(half.out.find("PASS"), std::string::npos) << half.out;
+  EXPECT_EQ(half.err, "amt: error: data: incomplete: 1 of 2 shards missing, damaged, duplicated or not in the manifest "
+                      "(listed above); the gates run on a complete dataset\n");
+  EXPECT_FALSE(fs::exists(dir / "data" / "quality"));
+
+  test::expect_success(dir, test::tiny_build({{"--characters", "2"}, {"--shard", "1/2"}}));
+  fs::copy_file(dir / "data" / "character-0000.h5", dir / "data" / "copy.h5");
+  const test::CommandResult copied = test::run_amt(dir, {"dataset", "check", "data", "--threads", "1"});
+  EXPECT_EQ(copied.status, 1);
+  EXPECT_NE(copied.out.find("  duplicate: data/copy.h5: holds character-0000 again, whose shard is character-0000.h5"),
+            std::string::npos)
+      << copied.out;
+  fs::remove(dir / "data" / "copy.h5");
+  const test::CommandResult whole = test::expect_success(dir, {"dataset", "check", "data", "--threads", "1"});
+  EXPECT_EQ(whole.out.rfind("completeness: 2 characters in manifest.json, 2 shards whole: complete", 0), 0u)
+      << whole.out;
+}
+
 TEST(DatasetInfoCommand, AFolderThatHoldsNoDatasetIsAOneLineError) {
   const fs::path dir = test::temp_dir("dataset_info_bad");
   test::users_folder(dir, "mine");

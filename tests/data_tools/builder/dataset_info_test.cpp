@@ -257,7 +257,7 @@ TEST_F(DatasetFolderInfo, CompleteFolderTotals) {
   EXPECT_TRUE(contains(text, "missing, damaged or not in the manifest: none")) << text;
 }
 
-TEST_F(DatasetFolderInfo, MissingTruncatedAndUnknownShardsAreListed) {
+TEST_F(DatasetFolderInfo, MissingTruncatedDuplicateAndUnknownShardsAreListed) {
   const fs::path dir = copy("folder_damaged");
   const std::vector<std::string> shards = shards_train_first(dir);
   const std::string& kept = shards[0];  // a train character
@@ -268,23 +268,44 @@ TEST_F(DatasetFolderInfo, MissingTruncatedAndUnknownShardsAreListed) {
   const std::string part = fs::path(missing).replace_extension(".part").string();
   std::ofstream(part) << "";
   fs::resize_file(truncated, fs::file_size(truncated) / 2);
-  const std::string unknown = (dir / "stray.h5").string();
-  fs::copy_file(kept, unknown);
+  const std::string duplicate = (dir / "stray.h5").string();
+  fs::copy_file(kept, duplicate);
+  // A shard of another build: its character renamed.
+  const std::string unknown = (dir / "zz_other.h5").string();
+  {
+    DatasetReader reader(kept);
+    DatasetWriter writer(unknown, reader.fps(), reader.joint_names());
+    CharacterData character = reader.read_character(reader.character_names()[0]);
+    character.name = "someone-else";
+    writer.add_character(character);
+    writer.commit();
+  }
 
   const DatasetFolderSummary summary = summarise_dataset_folder(dir.string());
-  ASSERT_EQ(summary.shards.size(), 4u);
-  EXPECT_EQ(summary.num_problems(), 3);
+  ASSERT_EQ(summary.shards.size(), 5u);
+  EXPECT_EQ(summary.num_problems(), 4);
   std::map<std::string, const ShardSummary*> by_path;
   for (const ShardSummary& shard : summary.shards) by_path[shard.path] = &shard;
-  ASSERT_EQ(by_path.size(), 4u);
+  ASSERT_EQ(by_path.size(), 5u);
   EXPECT_EQ(by_path[kept]->status, ShardStatus::kRead) << by_path[kept]->problem;
   EXPECT_EQ(by_path[missing]->status, ShardStatus::kMissing);
   EXPECT_EQ(by_path[missing]->problem.rfind(missing + ": missing (", 0), 0u) << by_path[missing]->problem;
   EXPECT_TRUE(contains(by_path[missing]->problem, fs::path(part).filename().string())) << by_path[missing]->problem;
   EXPECT_EQ(by_path[truncated]->status, ShardStatus::kDamaged);
   EXPECT_EQ(by_path[truncated]->problem.rfind(truncated + ": ", 0), 0u) << by_path[truncated]->problem;
+  // The missing shard names its character's index in the manifest, which says which --shard i/n process makes it.
+  const int index = by_path[missing]->manifest_index;
+  EXPECT_EQ(fs::path(missing).stem().string(), read_build_manifest(dir.string()).characters.at(index).name);
+  EXPECT_TRUE(contains(by_path[missing]->problem, "(character " + std::to_string(index) + " of 3, made by the build " +
+                                                      "process --shard i/n with i = " + std::to_string(index) +
+                                                      " mod n; "))
+      << by_path[missing]->problem;
+  EXPECT_EQ(by_path[duplicate]->status, ShardStatus::kDuplicate);
+  EXPECT_EQ(by_path[duplicate]->problem, duplicate + ": holds " + fs::path(kept).stem().string() + " again, whose " +
+                                             "shard is " + fs::path(kept).filename().string() +
+                                             " (a duplicate: training would draw it twice as often; remove it)");
   EXPECT_EQ(by_path[unknown]->status, ShardStatus::kUnexpected);
-  EXPECT_EQ(summary.shards.back().path, unknown);  // after the manifest's shards
+  EXPECT_EQ(summary.shards.back().path, unknown);  // after the manifest's shards, sorted by name
   for (const ShardSummary& shard : summary.shards) {
     EXPECT_EQ(shard.problem.find('\n'), std::string::npos) << shard.problem;
   }
@@ -294,18 +315,38 @@ TEST_F(DatasetFolderInfo, MissingTruncatedAndUnknownShardsAreListed) {
   EXPECT_EQ(summary.clips.train, 2);
   EXPECT_EQ(summary.clips.test, 1);
   EXPECT_EQ(summary.frames, 30);
-  EXPECT_EQ(summary.bytes, bytes_of({kept, truncated, unknown}));
+  EXPECT_EQ(summary.bytes, bytes_of({kept, truncated, duplicate, unknown}));
 
   std::ostringstream out;
   print_dataset_folder_summary(summary, out);
   const std::string text = out.str();
-  EXPECT_TRUE(contains(text, "shards: 1 of 4 ok")) << text;
+  EXPECT_TRUE(contains(text, "shards: 1 of 5 ok")) << text;
   EXPECT_TRUE(contains(text, "totals: 1 character (train 1, test 0), 3 clips (train 2, test 1), 30 frames")) << text;
-  EXPECT_TRUE(contains(text, "missing, damaged or not in the manifest: 3 of 4 shards")) << text;
+  EXPECT_TRUE(contains(text, "missing, damaged or not in the manifest: 4 of 5 shards")) << text;
   for (const ShardSummary& shard : summary.shards) {
     if (shard.status == ShardStatus::kRead) continue;
     EXPECT_TRUE(contains(text, "  " + shard.problem + "\n")) << text;
   }
+
+  // The completeness report of amt dataset check: the counts, then each problem under its kind.
+  std::ostringstream completeness;
+  print_dataset_completeness(summary, completeness);
+  const std::string report = completeness.str();
+  EXPECT_EQ(report.rfind("completeness: 3 characters in manifest.json, 1 shard whole, 1 missing, 1 damaged, "
+                         "1 duplicate, 1 not in manifest\n",
+                         0),
+            0u)
+      << report;
+  EXPECT_TRUE(contains(report, "  missing: " + by_path[missing]->problem + "\n")) << report;
+  EXPECT_TRUE(contains(report, "  duplicate: " + by_path[duplicate]->problem + "\n")) << report;
+  EXPECT_TRUE(contains(report, "  not in manifest: " + by_path[unknown]->problem + "\n")) << report;
+}
+
+TEST_F(DatasetFolderInfo, CompletenessOfACompleteFolder) {
+  std::ostringstream out;
+  print_dataset_completeness(summarise_dataset_folder(copy("folder_whole").string()), out);
+  EXPECT_EQ(out.str(), "completeness: 3 characters in manifest.json, 3 shards whole: complete (every character has "
+                       "its shard, none is duplicated)\n");
 }
 
 TEST(DatasetFolderInfoWithoutBuild, FolderWithoutManifestIsSummarisedFromItsShards) {
