@@ -47,7 +47,8 @@ void add_animate_command(CLI::App& app) {
       ->check(CLI::Range(1e-6, 1000.0));
   cmd->add_option("--apparel-mask", o->apparel_mask,
                   "Where the apparel mask comes from: model (the segmenter, default), rig (the character's own rig: "
-                  "a PMX model's physics-driven vertices, a dataset or generated character's apparel), or a "
+                  "a PMX model's physics-driven vertices, a glTF's chains of bones outside the canonical skeleton, a "
+                  "dataset or generated character's apparel), or a "
                   "per-vertex 0/1 mask file (JSON array or text)");
   cmd->add_option("--fps", *fps, "Output frame rate (default: 30 for BVH/glTF motions, a dataset clip's own rate)")
       ->check(CLI::Range(0.001, 1000.0));

@@ -1,6 +1,8 @@
 #include "infer/character_input.h"
 
 #include <algorithm>
+#include <set>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +14,7 @@
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/obj_io.h"
@@ -173,8 +176,50 @@ std::optional<std::pair<std::string, std::string>> split_dataset_spec(const std:
   return std::make_pair(file, spec.substr(colon + 1));
 }
 
+namespace {
+
+// True for the name of a body part a rig often has beside the canonical joints (fingers, toes, eyes,
+// jaw, tongue, twist and roll bones), compared in lower case: such chains are not apparel.
+bool body_part_name(std::string name) {
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  for (const char* part : {"finger", "thumb", "index", "middle", "ring", "pinky", "little", "toe", "eye", "jaw",
+                           "tongue", "teeth", "twist", "roll"}) {
+    if (name.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// The apparel a rig names by its shape: the vertices with a non-zero weight on a bone that no canonical
+// joint maps and that hangs in a chain (with an unmapped parent or child that is not a body part either)
+// from the mapped skeleton: hair, skirt and cape chains, VRM's secondary bones. `bones` receives the
+// number of such bones.
+std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRest& rest, const SparseWeights& w,
+                                        int* bones) {
+  const int J = file.num_joints();
+  std::vector<uint8_t> candidate(static_cast<size_t>(J), 0), chain(static_cast<size_t>(J), 0);
+  const std::set<std::string> extra(rest.extra.begin(), rest.extra.end());
+  for (int j = 0; j < J; ++j) candidate[j] = extra.count(file.names[j]) && !body_part_name(file.names[j]);
+  *bones = 0;
+  for (int j = 0; j < J; ++j) {
+    const int p = file.parents[j];
+    if (candidate[j] && p >= 0 && candidate[p]) chain[j] = chain[p] = 1;
+  }
+  for (int j = 0; j < J; ++j) *bones += chain[j];
+  std::vector<uint8_t> mask(static_cast<size_t>(w.num_vertices()), 0);
+  for (int i = 0; i < w.num_vertices(); ++i) {
+    for (int k = 0; k < kMaxInfluences; ++k) {
+      const int j = w.indices(i, k);
+      if (j >= 0 && j < J && w.weights(i, k) > 0.0f && chain[j]) mask[i] = 1;
+    }
+  }
+  return mask;
+}
+
+}  // namespace
+
 RuntimeCharacter load_character(const CharacterSpec& spec) {
   RuntimeCharacter c;
+  SparseWeights gltf_weights;  // a skinned glTF's own weights, for its rig's apparel
   std::optional<JointMapFile> user_map;
   if (!spec.joint_map.empty()) user_map = read_joint_map(spec.joint_map);
   const std::string& path = spec.spec;
@@ -224,6 +269,7 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
         GltfCharacter g = gltf_character(asset);
         c.mesh = std::move(g.mesh);
         c.file_skeleton = std::move(g.skeleton);
+        gltf_weights = std::move(g.weights);
       } catch (const Error&) {
         // No skinned mesh: an unrigged glTF needs a joints file; take the displayed mesh.
         if (spec.joints.empty()) throw;
@@ -287,6 +333,16 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
             ": joints: the character has no skeleton: expected a rigged file or --character-joints FILE");
   c.rest = canonical_rest(c.file_skeleton, user_map, path);
   c.skeleton = c.rest.skeleton;
+  if (gltf_weights.num_vertices() == c.mesh.num_vertices()) {
+    int chain_bones = 0;
+    std::vector<uint8_t> rig = chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, &chain_bones);
+    const auto count = std::count(rig.begin(), rig.end(), uint8_t(1));
+    if (count > 0) {
+      c.rig_apparel_mask = std::move(rig);
+      c.rig_apparel = "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +
+                      " bones outside the canonical map that hang in chains from it";
+    }
+  }
   return c;
 }
 

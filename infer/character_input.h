@@ -76,7 +76,9 @@ struct CharacterSpec {
 ///   apparel_mask    the dataset's ground-truth mask (N entries 0/1) for a dataset character, else empty
 ///   rig_apparel_mask  the apparel the character's own rig names (`--apparel-mask rig`; N entries 0/1), empty
 ///                   when it names none: a PMX model's physics-driven vertices (pmx_physics_apparel_mask), a
-///                   dataset character's ground truth; `rig_apparel` says where it came from
+///                   skinned glTF's vertices on chains of bones outside the canonical map (not fingers, toes,
+///                   eyes, jaw, tongue, twist or roll bones by name), a dataset character's ground truth, a
+///                   generated character's apparel; `rig_apparel` says where it came from
 ///   dataset, dataset_character  the dataset file and character name ("" otherwise)
 struct RuntimeCharacter {
   std::string name;

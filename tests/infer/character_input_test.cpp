@@ -6,7 +6,11 @@
 
 #include <fstream>
 
+#include "data_tools/builder/apparel.h"
+#include "data_tools/builder/body_generator.h"
+#include "data_tools/formats/gltf_export.h"
 #include "data_tools/formats/obj_io.h"
+#include "data_tools/geometry/motion.h"
 #include "data_tools/geometry/shapes.h"
 #include "tests/test_support.h"
 
@@ -114,6 +118,30 @@ TEST(LoadCharacter, ObjWithSidecarOnTheCanonicalSkeleton) {
   EXPECT_TRUE(c.rest.placed.empty());
   EXPECT_TRUE(c.rest.extra.empty());
   EXPECT_LT((c.skeleton.rest_joints - s.rest_joints).cwiseAbs().maxCoeff(), 1e-7f);
+}
+
+TEST(LoadCharacter, RiggedGltfChainsOutsideTheCanonicalMapAreTheRigsApparel) {
+  // A generated character exported with its whole rig (the canonical joints, then the apparel chains'
+  // bones) and its rig weights: the vertices on the chains are exactly the builder's apparel mask.
+  const auto dir = test::temp_dir("character_gltf_chains");
+  const DressedCharacter dressed = dress_character(generate_body(sample_body_params(5), 1400), 5);
+  Skeleton rig;
+  for (const PhysicsBone& bone : dressed.rig.bones) {
+    rig.names.push_back(bone.name);
+    rig.parents.push_back(bone.parent);
+  }
+  rig.rest_joints.resize(dressed.rig.num_bones(), 3);
+  for (int b = 0; b < dressed.rig.num_bones(); ++b) rig.rest_joints.row(b) = dressed.rig.bones[b].rest_position;
+  const std::string glb = (dir / "dressed.glb").string();
+  export_gltf_rigged(glb, dressed.mesh, rig, dressed.rig_weights, rest_motion(rig, 1));
+  const RuntimeCharacter c = load_character({glb, "", ""});
+  ASSERT_EQ(c.rig_apparel_mask.size(), dressed.apparel_mask.size()) << c.rig_apparel;
+  EXPECT_EQ(c.rig_apparel_mask, dressed.apparel_mask);
+  EXPECT_EQ(c.rig_apparel.rfind("glTF chains: ", 0), 0u) << c.rig_apparel;
+  // The same chains named as fingers are the body's: no rig apparel.
+  for (size_t b = 22; b < rig.names.size(); ++b) rig.names[b] = "LeftHandIndex_" + rig.names[b];
+  export_gltf_rigged(glb, dressed.mesh, rig, dressed.rig_weights, rest_motion(rig, 1));
+  EXPECT_TRUE(load_character({glb, "", ""}).rig_apparel_mask.empty());
 }
 
 TEST(ApparelMask, ReadsJsonAndTextAndRejectsBadValues) {
