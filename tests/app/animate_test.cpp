@@ -15,6 +15,8 @@
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/obj_io.h"
+#include "data_tools/geometry/shapes.h"
+#include "data_tools/geometry/skeleton.h"
 #include "tests/app/amt_cli.h"
 
 namespace amt {
@@ -105,6 +107,9 @@ TEST(AnimateCommand, BadInputsAreOneLineErrorsNamingTheFileAndWriteNothing) {
   fs::create_directories(dir / "folder.bvh");
   std::ofstream(dir / "truncated.bvh") << "HIERARCHY\nROOT hips\n{\n  OFFSET 0 0\n";
   std::ofstream(dir / "mask.json") << "[1, 0\n";
+  const Skeleton skeleton = canonical_skeleton();  // an OBJ character: no rig that names apparel
+  write_obj((dir / "capsules.obj").string(), capsule_character(skeleton.rest_joints, skeleton.parents, 600));
+  write_joints_json(joints_sidecar_path((dir / "capsules.obj").string()), skeleton);
   const auto with = [](std::vector<std::string> args, const std::string& option, const std::string& value) {
     for (size_t k = 0; k + 1 < args.size(); ++k) {
       if (args[k] == option) args[k + 1] = value;
@@ -118,6 +123,8 @@ TEST(AnimateCommand, BadInputsAreOneLineErrorsNamingTheFileAndWriteNothing) {
        {"truncated.bvh:4: OFFSET of joint 'hips': expected 3 numbers", "found end of file"}},
       {with(animate("out.glb"), "--character", "ex.h5:nobody"), {"ex.h5: /characters/nobody: expected a character"}},
       {animate("out.glb", {"--apparel-mask", "mask.json"}), {"mask.json: apparel mask: expected a JSON array of 0/1"}},
+      {with(animate("out.glb", {"--apparel-mask", "rig"}), "--character", "capsules.obj"),
+       {"capsules.obj: --apparel-mask rig: the character's rig names no apparel"}},
       {with(animate("out.glb"), "--model", (dir / "folder.bvh").string()),
        {"folder.bvh/segmenter.ckpt: no such checkpoint"}}};
   test::expect_errors_writing_nothing(dir, cases);  // no output, no bind cache or report, no temporary
