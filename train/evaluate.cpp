@@ -200,21 +200,11 @@ double bare_body_apparel_share(const ModelBundle& bundle, const CharacterCache& 
   std::vector<int32_t> size(static_cast<size_t>(count), 0);
   for (const int32_t l : label) ++size[static_cast<size_t>(l)];
   const int32_t largest = static_cast<int32_t>(std::max_element(size.begin(), size.end()) - size.begin());
-  std::vector<int32_t> index(static_cast<size_t>(N), -1);
-  MatrixX3f V(size[static_cast<size_t>(largest)], 3);
-  int32_t n = 0;
-  for (Eigen::Index i = 0; i < N; ++i) {
-    if (label[i] != largest) continue;
-    index[i] = n;
-    V.row(n++) = c.mesh.V.row(i);
-  }
-  std::vector<int32_t> faces;
-  for (Eigen::Index f = 0; f < c.mesh.F.rows(); ++f) {
-    const int32_t a = index[c.mesh.F(f, 0)], b = index[c.mesh.F(f, 1)], d = index[c.mesh.F(f, 2)];
-    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
-  }
-  const MatrixX3i F = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
-  return apparel_probabilities(bundle, V, F, c.rest_joints).gt(0.5).to(at::kDouble).mean().item<double>();
+  std::vector<int32_t> ids;
+  for (Eigen::Index i = 0; i < N; ++i)
+    if (label[i] == largest) ids.push_back(static_cast<int32_t>(i));
+  const TriMesh bare = submesh(c.mesh.V, c.mesh.F, ids);
+  return apparel_probabilities(bundle, bare.V, bare.F, c.rest_joints).gt(0.5).to(at::kDouble).mean().item<double>();
 }
 
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,

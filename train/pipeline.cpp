@@ -67,23 +67,11 @@ at::Tensor edge_tensor(const MatrixX2i& E) {
 // are among them, exactly as train/samples.cpp computes G_body.
 at::Tensor submesh_geodesics(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints, const at::Tensor& ids,
                              const char* what) {
-  const int64_t N = V.rows(), N_s = ids.size(0);
-  std::vector<int32_t> index(N, -1);
-  MatrixX3f V_s(N_s, 3);
-  const int64_t* id = ids.data_ptr<int64_t>();
-  for (int64_t i = 0; i < N_s; ++i) {
-    index[id[i]] = static_cast<int32_t>(i);
-    V_s.row(i) = V.row(id[i]);
-  }
-  std::vector<int32_t> faces;
-  for (Eigen::Index f = 0; f < F.rows(); ++f) {
-    const int32_t a = index[F(f, 0)], b = index[F(f, 1)], d = index[F(f, 2)];
-    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
-  }
-  AMT_CHECK(!faces.empty(), "bind: faces: the skinning predictor needs faces between ", what,
-            " vertices, found none (", N_s, " ", what, " vertices)");
-  const MatrixX3i F_s = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
-  return from_matrix(geodesic_distances(V_s, F_s, joints));
+  const at::Tensor id = ids.to(at::kInt).contiguous();
+  const TriMesh part = submesh(V, F, std::vector<int32_t>(id.data_ptr<int32_t>(), id.data_ptr<int32_t>() + id.numel()));
+  AMT_CHECK(part.F.rows() > 0, "bind: faces: the skinning predictor needs faces between ", what,
+            " vertices, found none (", part.V.rows(), " ", what, " vertices)");
+  return from_matrix(geodesic_distances(part.V, part.F, joints));
 }
 
 // The local apparel module's per-character inputs from the bound parts and anchor weights.

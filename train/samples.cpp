@@ -239,24 +239,13 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     }
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.
-      std::vector<int32_t> body_index(N, -1);
       const int64_t N_b = t->body_ids.size(0);
-      MatrixX3f V_b(N_b, 3);
-      const int64_t* ids = t->body_ids.data_ptr<int64_t>();
-      for (int64_t i = 0; i < N_b; ++i) {
-        body_index[ids[i]] = static_cast<int32_t>(i);
-        V_b.row(i) = data.mesh.V.row(ids[i]);
-      }
-      std::vector<int32_t> faces;
-      for (int f = 0; f < data.mesh.num_faces(); ++f) {
-        const int32_t a = body_index[data.mesh.F(f, 0)], b = body_index[data.mesh.F(f, 1)],
-                      d = body_index[data.mesh.F(f, 2)];
-        if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
-      }
-      AMT_CHECK(!faces.empty(), shards_[c.shard], ": /characters/", c.name, ": faces: the skinning module needs ",
+      const at::Tensor ids = t->body_ids.to(at::kInt).contiguous();
+      const TriMesh body = submesh(data.mesh.V, data.mesh.F,
+                                   std::vector<int32_t>(ids.data_ptr<int32_t>(), ids.data_ptr<int32_t>() + N_b));
+      AMT_CHECK(body.F.rows() > 0, shards_[c.shard], ": /characters/", c.name, ": faces: the skinning module needs ",
                 "faces between body vertices, found none");
-      const MatrixX3i F_b = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
-      const MatrixXfR G = geodesic_distances(V_b, F_b, data.skeleton.rest_joints);
+      const MatrixXfR G = geodesic_distances(body.V, body.F, data.skeleton.rest_joints);
       t->G_body = float_tensor(G.data(), {N_b, J});
     }
     c.tensors = std::move(t);

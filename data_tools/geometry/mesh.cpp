@@ -67,6 +67,25 @@ void check_plausible_extent(const TriMesh& mesh, const std::string& source) {
   }
 }
 
+TriMesh submesh(const MatrixX3f& V, const MatrixX3i& F, const std::vector<int32_t>& ids) {
+  std::vector<int32_t> index(static_cast<size_t>(V.rows()), -1);
+  TriMesh out;
+  out.V.resize(static_cast<Eigen::Index>(ids.size()), 3);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    AMT_CHECK(ids[i] >= 0 && ids[i] < V.rows(), "submesh: vertex ids: expected indices in [0, ", V.rows(), "), found ",
+              ids[i]);
+    index[static_cast<size_t>(ids[i])] = static_cast<int32_t>(i);
+    out.V.row(static_cast<Eigen::Index>(i)) = V.row(ids[i]);
+  }
+  std::vector<int32_t> faces;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    const int32_t a = index[F(f, 0)], b = index[F(f, 1)], d = index[F(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.insert(faces.end(), {a, b, d});
+  }
+  out.F = Eigen::Map<const MatrixX3i>(faces.data(), static_cast<Eigen::Index>(faces.size() / 3), 3);
+  return out;
+}
+
 MatrixX2i unique_edges(const MatrixX3i& F) {
   std::vector<std::pair<int32_t, int32_t>> edges;
   edges.reserve(static_cast<size_t>(F.rows()) * 3);

@@ -39,6 +39,11 @@ void check_plausible_extent(const TriMesh& mesh, const std::string& source);
 /// Returns #E by 2.
 MatrixX2i unique_edges(const MatrixX3i& F);
 
+/// The sub-mesh of the vertices `ids` (indices into V, in the order given, no repeats) and of the faces
+/// whose three corners are among them, renumbered to positions in `ids` (the body part of a character,
+/// its largest connected part). Throws amt::Error on an index out of range.
+TriMesh submesh(const MatrixX3f& V, const MatrixX3i& F, const std::vector<int32_t>& ids);
+
 /// True when the oriented faces have no boundary: every edge is crossed as often from i to j as from
 /// j to i (a closed, consistently oriented surface, possibly with several parts, touching or
 /// self-intersecting). Off such a surface the winding number is an integer. An empty F is closed.

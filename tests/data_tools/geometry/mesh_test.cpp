@@ -52,3 +52,24 @@ TEST(PlausibleExtent, DegenerateMeshesFallBackToTheAbsoluteBound) {
 
 }  // namespace
 }  // namespace amt
+
+namespace amt {
+namespace {
+
+TEST(Submesh, KeepsTheListedVerticesInOrderAndTheFacesAmongThem) {
+  // Two triangles sharing the edge 1-2 and a third one apart; keep vertices 2, 1, 3, 4 (in that order).
+  MatrixX3f V(6, 3);
+  V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 5, 5, 5, 6, 5, 5;
+  MatrixX3i F(3, 3);
+  F << 0, 1, 2, 1, 3, 2, 3, 4, 5;
+  const TriMesh part = submesh(V, F, {2, 1, 3, 4});
+  ASSERT_EQ(part.V.rows(), 4);
+  EXPECT_EQ(part.V.row(0), V.row(2));
+  EXPECT_EQ(part.V.row(3), V.row(4));
+  ASSERT_EQ(part.F.rows(), 1);  // only face 1-3-2 has its three corners listed
+  EXPECT_EQ(part.F.row(0), Eigen::RowVector3i(1, 2, 0));
+  EXPECT_THROW(submesh(V, F, {0, 6}), Error);
+}
+
+}  // namespace
+}  // namespace amt
