@@ -181,11 +181,11 @@ Attachment attachments(const at::Tensor& V, const at::Tensor& edges, const at::T
 
 }  // namespace
 
-at::Tensor chain_ancestors(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
-                           const at::Tensor& body_ids, int64_t levels) {
-  TORCH_CHECK(levels >= 0, "chain_ancestors: levels must be >= 0, got ", levels);
-  const Attachment a = attachments(V, edges, apparel_ids, body_ids);
-  const int64_t N_a = apparel_ids.size(0);
+namespace {
+
+// Jump pointers up the attachment paths (chain_ancestors) from one Attachment.
+at::Tensor ancestors_of(const Attachment& a, int64_t levels) {
+  const int64_t N_a = static_cast<int64_t>(a.toward_body.size());
   std::vector<int64_t> out(static_cast<size_t>(N_a * levels));
   std::vector<int64_t> up = a.toward_body, next(up.size());  // 2^0 hops
   for (int64_t l = 0; l < levels; ++l) {
@@ -194,6 +194,24 @@ at::Tensor chain_ancestors(const at::Tensor& V, const at::Tensor& edges, const a
     up.swap(next);
   }
   return at::tensor(out, at::kLong).view({N_a, levels});
+}
+
+// The rows of body-part tensors (positions in the ascending body_ids) of the body vertices `vertices`
+// (mesh indices).
+at::Tensor body_rows(const at::Tensor& body_ids, const std::vector<int64_t>& vertices) {
+  const at::Tensor b = body_ids.to(at::kLong).contiguous();
+  const int64_t* first = b.data_ptr<int64_t>();
+  std::vector<int64_t> rows(vertices.size());
+  for (size_t i = 0; i < vertices.size(); ++i) rows[i] = std::lower_bound(first, first + b.numel(), vertices[i]) - first;
+  return at::tensor(rows, at::kLong);
+}
+
+}  // namespace
+
+at::Tensor chain_ancestors(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                           const at::Tensor& body_ids, int64_t levels) {
+  TORCH_CHECK(levels >= 0, "chain_ancestors: levels must be >= 0, got ", levels);
+  return ancestors_of(attachments(V, edges, apparel_ids, body_ids), levels);
 }
 
 at::Tensor attachment_distances(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
@@ -210,12 +228,8 @@ at::Tensor attachment_anchor_weights(const at::Tensor& V, const at::Tensor& edge
   // Without body vertices there is nothing to attach to: the nearest rule's fallback (the first joint).
   if (body_ids.size(0) == 0) return apparel_anchor_weights(V, apparel_ids, body_ids, body_weights);
   const Attachment a = attachments(V, edges, apparel_ids, body_ids);
-  // body_weights rows are positions in body_ids (ascending).
-  const at::Tensor b = body_ids.to(at::kLong).contiguous();
-  const int64_t* first = b.data_ptr<int64_t>();
-  std::vector<int64_t> rows(static_cast<size_t>(N_a));
-  for (int64_t i = 0; i < N_a; ++i) rows[i] = std::lower_bound(first, first + b.numel(), a.body_vertex[i]) - first;
-  return body_weights.index_select(0, at::tensor(rows, at::kLong));
+  TORCH_CHECK(static_cast<int64_t>(a.body_vertex.size()) == N_a, "attachment_anchor_weights: one attachment per vertex");
+  return body_weights.index_select(0, body_rows(body_ids, a.body_vertex));
 }
 
 ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
@@ -246,17 +260,15 @@ ApparelGraph apparel_graph(const at::Tensor& V, const at::Tensor& edges, const a
     if (body_weights.defined()) {
       TORCH_CHECK(body_weights.dim() == 2 && body_weights.size(0) == body_ids.size(0),
                   "apparel_graph: body_weights must be (", body_ids.size(0), ", J), got ", body_weights.sizes());
-      // nearest_ids are mesh indices; body_weights rows are positions in body_ids (ascending).
-      const int64_t* first = bids.data_ptr<int64_t>();
-      std::vector<int64_t> rows(static_cast<size_t>(N_a));
-      for (int64_t i = 0; i < N_a; ++i) rows[i] = std::lower_bound(first, first + bids.numel(), nearest[i]) - first;
       g.contact_rest = Vc.index_select(0, nearest_ids).contiguous();
-      g.contact_weights = body_weights.to(at::kFloat).index_select(0, at::tensor(rows, at::kLong)).contiguous();
+      g.contact_weights = body_weights.to(at::kFloat)
+                              .index_select(0, body_rows(body_ids, std::vector<int64_t>(nearest.begin(), nearest.end())))
+                              .contiguous();
     }
   }
-  g.rest_features = at::cat({to_joint, to_body, attachment_distances(V, edges, apparel_ids, body_ids).unsqueeze(1)}, 1)
-                        .contiguous();
-  g.ancestors = chain_ancestors(V, edges, apparel_ids, body_ids, kApparelReachLevels);
+  const Attachment a = attachments(V, edges, apparel_ids, body_ids);  // once for both uses
+  g.rest_features = at::cat({to_joint, to_body, at::tensor(a.distance, at::kFloat).unsqueeze(1)}, 1).contiguous();
+  g.ancestors = ancestors_of(a, kApparelReachLevels);
   return g;
 }
 
