@@ -109,6 +109,15 @@ TEST(PmxExport, FitIndexSizesToTheTables) {
   expect_same_model(m, parse(pmx_to_bytes(m)));
 }
 
+TEST(PmxExport, AnEmptyModelRoundTrips) {
+  PmxModel m;  // no vertices, faces, bones, bodies or joints: "Root" has no bone to show
+  const std::vector<uint8_t> bytes = pmx_to_bytes(m);
+  const PmxModel back = parse(bytes);
+  expect_same_model(m, back);
+  EXPECT_EQ(back.display_frame_count, 2);
+  EXPECT_EQ(pmx_to_bytes(back), bytes);
+}
+
 // === Files
 
 TEST(PmxExport, WriteFileReadsBackAndLeavesNoTemporary) {
