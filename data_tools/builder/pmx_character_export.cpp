@@ -2,7 +2,6 @@
 // dynamics convert as they do).
 #include "data_tools/builder/pmx_character_export.h"
 
-#include <algorithm>
 #include <cmath>
 
 #include "data_tools/builder/pmx_physics.h"
@@ -28,7 +27,8 @@ const std::array<std::string, kCanonicalJointCount>& mmd_canonical_bone_names() 
     out[kSpine2] = "上半身2";
     out[kSpine3] = "上半身3";
     for (int j = 0; j < kCanonicalJointCount; ++j) {
-      AMT_CHECK(!out[static_cast<size_t>(j)].empty(), "mmd_canonical_bone_names: the MMD joint-name convention has no name for ",
+      AMT_CHECK(!out[static_cast<size_t>(j)].empty(),
+                "mmd_canonical_bone_names: the MMD joint-name convention has no name for ",
                 canonical_joint_names()[static_cast<size_t>(j)]);
     }
     return out;
@@ -53,15 +53,6 @@ struct ToMmd {
     R.row(2) *= -1.0f;  // S R S
     R.col(2) *= -1.0f;
     return pmx_euler_angles(R);
-  }
-
-  // Ry(y) Rx(x) Rz(z) has R(1, 2) = -sin x, (R(0, 2), R(2, 2)) = cos x (sin y, cos y) and (R(1, 0), R(1, 1)) =
-  // cos x (sin z, cos z). At cos x = 0 only y - z or y + z is defined: z = 0 is taken, then (R(0, 0), R(2, 0)) =
-  // (cos y, -sin y).
-  static Eigen::Vector3f pmx_euler_angles(const Eigen::Matrix3f& R) {
-    const float x = std::asin(std::clamp(-R(1, 2), -1.0f, 1.0f));
-    if (std::hypot(R(1, 0), R(1, 1)) < 1e-6f) return Eigen::Vector3f(x, std::atan2(-R(2, 0), R(0, 0)), 0.0f);
-    return Eigen::Vector3f(x, std::atan2(R(0, 2), R(2, 2)), std::atan2(R(1, 0), R(1, 1)));
   }
 };
 

@@ -3,6 +3,7 @@
 // morphs, display frames, rigid bodies, joints and (2.1) soft bodies, all little-endian.
 #include "data_tools/formats/pmx_export.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string_view>
@@ -88,6 +89,14 @@ void PmxEncoder::vertex_index(int32_t v, const PmxField& field) {
   u16(static_cast<uint16_t>(v));
 }
 
+// Ry(y) Rx(x) Rz(z) has R(1, 2) = -sin x, (R(0, 2), R(2, 2)) = cos x (sin y, cos y) and (R(1, 0), R(1, 1)) =
+// cos x (sin z, cos z); at cos x = 0 and z = 0, (R(0, 0), R(2, 0)) = (cos y, -sin y).
+Eigen::Vector3f pmx_euler_angles(const Eigen::Matrix3f& R) {
+  const float x = std::asin(std::clamp(-R(1, 2), -1.0f, 1.0f));
+  if (std::hypot(R(1, 0), R(1, 1)) < 1e-6f) return Eigen::Vector3f(x, std::atan2(-R(2, 0), R(0, 0)), 0.0f);
+  return Eigen::Vector3f(x, std::atan2(R(0, 2), R(2, 2)), std::atan2(R(1, 0), R(1, 1)));
+}
+
 namespace {
 
 // === Checks of what the format can hold
@@ -170,7 +179,8 @@ int deform_bone_count(PmxDeform deform) {
 
 class PmxWriter {
  public:
-  PmxWriter(const PmxModel& model, PmxFieldOffsets* offsets) : m_(model), h_(model.header), out_(h_), offsets_(offsets) {}
+  PmxWriter(const PmxModel& model, PmxFieldOffsets* offsets)
+      : m_(model), h_(model.header), out_(h_), offsets_(offsets) {}
 
   std::vector<uint8_t> write() {
     header();

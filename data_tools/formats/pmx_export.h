@@ -61,6 +61,11 @@ class PmxEncoder {
   PmxHeader header_;
 };
 
+/// Euler angles (radians) of a rotation in PMX's composition R = Ry(y) Rx(x) Rz(z): the inverse of
+/// pmx_euler_rotation (data_tools/formats/pmx_import.h), x in [-pi/2, pi/2], y and z in (-pi, pi]. At x = +-pi/2
+/// only y - z or y + z is defined; z = 0 is returned then.
+Eigen::Vector3f pmx_euler_angles(const Eigen::Matrix3f& R);
+
 // === Writing
 
 /// Byte offsets of fields in written bytes, by the reader's field names: each section's count ("vertices",

@@ -20,9 +20,9 @@ namespace fs = std::filesystem;
 
 TEST(DatasetExportPmxCommand, WritesTheBuildsCharacterWithItsApparelRig) {
   const fs::path dir = test::temp_dir("dataset_export_pmx");
-  const test::CommandResult r = test::expect_success(
-      dir, {"dataset", "export-pmx", "--seed", "11", "--character", "1", "--vertices", "1000", "--out",
-            "models/character-0001.pmx", "--threads", "1"});
+  const test::CommandResult r =
+      test::expect_success(dir, {"dataset", "export-pmx", "--seed", "11", "--character", "1", "--vertices", "1000",
+                                 "--out", "models/character-0001.pmx", "--threads", "1"});
   EXPECT_EQ(r.out.rfind("wrote models/character-0001.pmx: ", 0), 0u) << r.out;
   const PmxModel model = read_pmx((dir / "models" / "character-0001.pmx").string());
   EXPECT_EQ(model.header.name, "character-0001");

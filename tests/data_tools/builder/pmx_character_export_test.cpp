@@ -28,9 +28,8 @@ namespace {
 
 // A small character (about 1000 body vertices) in a pleated skirt (ring joints with linear limits) and twin tails.
 const DressedCharacter& character() {
-  static const DressedCharacter c =
-      dress_character_with(generate_body(sample_body_params(uint64_t{1000}), 1000),
-                           {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails}, 3);
+  static const DressedCharacter c = dress_character_with(generate_body(sample_body_params(uint64_t{1000}), 1000),
+                                                         {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails}, 3);
   return c;
 }
 
@@ -55,10 +54,9 @@ TEST(PmxCharacterExport, MeshAndSkinningConvertBack) {
   EXPECT_EQ(back.faces, c.mesh.F);
   EXPECT_LT((back.vertices.normals - vertex_normals(c.mesh.V, c.mesh.F)).cwiseAbs().maxCoeff(), 1e-6f);
   const int bones = c.rig.num_bones();
-  EXPECT_LT((densify_weights(pmx_skin_weights(back), bones) - densify_weights(c.rig_weights, bones))
-                .cwiseAbs()
-                .maxCoeff(),
-            1e-6f);
+  EXPECT_LT(
+      (densify_weights(pmx_skin_weights(back), bones) - densify_weights(c.rig_weights, bones)).cwiseAbs().maxCoeff(),
+      1e-6f);
   for (int i = 0; i < m.vertices.size(); ++i) {
     const PmxDeform d = m.vertices.deform[static_cast<size_t>(i)];
     ASSERT_TRUE(d == PmxDeform::kBdef1 || d == PmxDeform::kBdef4) << i;
@@ -112,7 +110,8 @@ TEST(PmxCharacterExport, PhysicsRigIsAcceptedAndGivesTheApparelMask) {
     SCOPED_TRACE("body " + std::to_string(b));
     const PhysicsBody& source = c.rig.bodies[static_cast<size_t>(b)];
     const PmxRigidBody& body = m.rigid_bodies[static_cast<size_t>(b)];
-    EXPECT_EQ(body.mode, source.mode == PhysicsMode::kFollowBone ? PmxPhysicsMode::kFollowBone : PmxPhysicsMode::kDynamic);
+    EXPECT_EQ(body.mode,
+              source.mode == PhysicsMode::kFollowBone ? PmxPhysicsMode::kFollowBone : PmxPhysicsMode::kDynamic);
     EXPECT_EQ(body.bone, source.bone);
     EXPECT_EQ(body.group, source.group);
     EXPECT_EQ(rig.bodies[static_cast<size_t>(b)].non_collision_mask, source.non_collision_mask);
@@ -131,7 +130,8 @@ TEST(PmxCharacterExport, PhysicsRigIsAcceptedAndGivesTheApparelMask) {
     EXPECT_EQ(joint.body_a, source.body_a);
     EXPECT_EQ(joint.body_b, source.body_b);
     EXPECT_LT((pmx_to_amt_position(joint.rest.position, s) - source.rest.position).norm(), 1e-5f);
-    EXPECT_TRUE(mirrored(joint.rest.rotation.toRotationMatrix()).isApprox(source.rest.rotation.toRotationMatrix(), 1e-5f));
+    EXPECT_TRUE(
+        mirrored(joint.rest.rotation.toRotationMatrix()).isApprox(source.rest.rotation.toRotationMatrix(), 1e-5f));
     Eigen::Vector3f lo, hi;
     pmx_to_amt_length_range(joint.linear_min, joint.linear_max, s, lo, hi);
     EXPECT_TRUE(lo.isApprox(source.linear_min, 1e-5f) || (lo - source.linear_min).norm() < 1e-6f);
@@ -184,7 +184,8 @@ Transforms swung_pose(const PhysicsRig& rig, float t) {
   const Eigen::Matrix3f R = Eigen::AngleAxisf(0.6f * std::sin(2 * pi * t), Eigen::Vector3f::UnitY()).toRotationMatrix();
   const Eigen::Vector3f shift(0.15f * std::sin(2 * pi * 1.3f * t), 0.05f * std::sin(2 * pi * t), 0);
   Transforms pose;
-  for (const PhysicsBone& b : rig.bones) pose.push_back(make_transform(R, R * (b.rest_position - centre) + centre + shift));
+  for (const PhysicsBone& b : rig.bones)
+    pose.push_back(make_transform(R, R * (b.rest_position - centre) + centre + shift));
   return pose;
 }
 
@@ -213,13 +214,14 @@ float simulate_both(const DressedCharacter& c, float metres_per_unit, int frames
       EXPECT_TRUE(simulated[static_cast<size_t>(b)].allFinite()) << "frame " << frame << " bone " << b;
       const int parent = c.rig.bones[static_cast<size_t>(b)].parent;
       if (b >= kCanonicalJointCount) {  // apparel stays attached: a bone keeps about its rest distance to its parent
-        const float rest = (c.rig.bones[static_cast<size_t>(b)].rest_position -
-                            c.rig.bones[static_cast<size_t>(parent)].rest_position)
-                               .norm();
+        const float rest =
+            (c.rig.bones[static_cast<size_t>(b)].rest_position - c.rig.bones[static_cast<size_t>(parent)].rest_position)
+                .norm();
         const float now = (p - Eigen::Vector3f(simulated[static_cast<size_t>(parent)].col(3))).norm();
         EXPECT_LT(std::abs(now - rest), 0.2f * rest + 0.01f) << "frame " << frame << " bone " << b;
       }
-      largest = std::max(largest, (p - Eigen::Vector3f(procedural.bone_transforms()[static_cast<size_t>(b)].col(3))).norm());
+      largest =
+          std::max(largest, (p - Eigen::Vector3f(procedural.bone_transforms()[static_cast<size_t>(b)].col(3))).norm());
     }
   }
   return largest;

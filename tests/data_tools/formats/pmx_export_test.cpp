@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -89,6 +90,22 @@ TEST(PmxExport, Utf16TextWithSurrogatesAndIllFormedUtf8) {
   EXPECT_EQ(parse(pmx_to_bytes(m)).bones[0].name, "センター😀");
 }
 
+TEST(PmxExport, EulerAnglesInvertTheEulerRotation) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> angle(-3.1f, 3.1f), pitch(-1.5f, 1.5f);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Vector3f e(pitch(rng), angle(rng), angle(rng));
+    EXPECT_TRUE(pmx_euler_angles(pmx_euler_rotation(e)).isApprox(e, 1e-4f)) << e.transpose();
+  }
+  // At x = +-pi/2 only y -+ z is defined: z comes out 0 and the rotation is the same.
+  for (float x : {1.5707963f, -1.5707963f}) {
+    const Eigen::Vector3f e(x, 0.7f, -0.4f);
+    const Eigen::Vector3f back = pmx_euler_angles(pmx_euler_rotation(e));
+    EXPECT_EQ(back.z(), 0.0f);
+    EXPECT_TRUE(pmx_euler_rotation(back).isApprox(pmx_euler_rotation(e), 1e-5f)) << back.transpose();
+  }
+}
+
 TEST(PmxExport, FitIndexSizesToTheTables) {
   PmxModel m = sample_model(false, 249);  // 255 vertices, 5 bones, 3 bodies
   pmx_fit_index_sizes(m);
@@ -138,7 +155,7 @@ TEST(PmxExport, ModelsTheReaderWouldRejectAreNotWritten) {
   PmxModel m = sample_model(false);
   m.bones[3].parent = 7;
   PmxFieldOffsets offsets;
-  pmx_to_bytes(m, &offsets);  // the bytes can be made (tests damage files this way) ...
+  pmx_to_bytes(m, &offsets);                        // the bytes can be made (tests damage files this way) ...
   EXPECT_EQ(error_of([&] { write_pmx(m, path); }),  // ... but not written as a file
             path + " (as written): offset " + std::to_string(offsets.at("bones[3].parent")) +
                 ": bones[3].parent: expected -1 or an index below 5, found 7");
@@ -170,8 +187,9 @@ TEST(PmxExport, BadPathsAreOneLineErrors) {
 TEST(PmxExport, WhatCannotBeEncodedIsAnError) {
   PmxModel m = sample_model(false);
   m.source = "test.pmx";
-  EXPECT_EQ(error_of([&] { pmx_to_bytes(pmx_to_amt_frame(m)); }),
-            "test.pmx: frame: expected a model in PMX's own frame and units (PmxFrame::kMmd), found one in amt's frame");
+  EXPECT_EQ(
+      error_of([&] { pmx_to_bytes(pmx_to_amt_frame(m)); }),
+      "test.pmx: frame: expected a model in PMX's own frame and units (PmxFrame::kMmd), found one in amt's frame");
   PmxModel bad = m;
   bad.header.version = 2.2f;
   EXPECT_EQ(error_of([&] { pmx_to_bytes(bad); }), "test.pmx: header.version: expected 2.0 or 2.1, found 2.2");

@@ -31,7 +31,7 @@ inline void set_flag_booleans(PmxBone& b) {
 }
 
 inline PmxBone bone(const std::string& name, const std::string& english, Eigen::Vector3f position, int32_t parent,
-             uint16_t flags) {
+                    uint16_t flags) {
   PmxBone b;
   b.name = name;
   b.name_english = english;
