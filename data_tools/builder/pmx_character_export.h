@@ -15,8 +15,9 @@
 //             joint; then the apparel bones under their rig names ("pleated_skirt0_c3_b2"), parents before children;
 //             English names are the rig's names;
 //   bodies    the rig's bodies in order: body capsules kFollowBone (kinematic), apparel bodies kDynamic (the
-//             procedural rig's PhysicsMode, mode for mode), sizes and rest transforms converted, collision group as
-//             is and collision mask = the complement of the rig's non-collision mask (as pmx_physics_rig reads it);
+//             procedural rig's PhysicsMode, mode for mode), sizes and rest transforms converted, masses as below,
+//             damping, friction and restitution as they are, collision group as is and collision mask = the
+//             complement of the rig's non-collision mask (as pmx_physics_rig reads it);
 //   joints    the rig's spring 6-DOF joints in order, limits converted to MMD's frame and units, stiffness as below.
 // Hence pmx_physics_apparel_mask of the model is the character's apparel_mask exactly, and pmx_physics_rig accepts
 // it. The sections a PmxModel does not hold are written as pmx_export.h says (one material, no morphs).
