@@ -248,7 +248,10 @@ void bench_runtime(const BenchOptions& o) {
     for (const int threads : o.runtime_threads) {
       set_thread_count(threads);
       for (const bool resolve : {true}) {
+        const auto session_start = std::chrono::steady_clock::now();
         RuntimeSession session(bundle, bind.bound, mesh.F, resolve);
+        const double session_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - session_start).count();
         const Transforms first = forward_kinematics(body.skeleton, walk, 0);
         const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
         for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
@@ -276,12 +279,12 @@ void bench_runtime(const BenchOptions& o) {
         std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
                     "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
                     "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
-                    "RSS %.0f MB, peak %.0f MB\n",
+                    "RSS %.0f MB, peak %.0f MB; session set-up %.2f s\n",
                     N, threads, threads > 1 ? "s" : "", 1e3 * median, 1e3 * p95, 1.0 / median, 1e3 * median_p95(model).first,
                     1e3 * median_p95(lbs).first, 1e3 * median_p95(app).first, 1e3 * median_p95(ref).first,
                     1e3 * median_p95(pen).first, 1e3 * median_p95(out).first, 100.0 * before.share(),
                     100.0 * after.share(), before.total > 0 ? 100.0 * double(carried) / before.total : 0.0, resident_mb(),
-                    peak_resident_mb());
+                    peak_resident_mb(), session_seconds);
         std::fflush(stdout);
       }
     }
