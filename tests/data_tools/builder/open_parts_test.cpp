@@ -180,5 +180,73 @@ TEST(OpenPartsPenetration, ProbesPushedIntoOpenPartsAreFoundAndPushedOutOthersSt
   EXPECT_EQ(moved_outside, 0);
 }
 
+// Every face of a closed body is exposed; on the open parts, the seam rings tucked under a neighbour,
+// the cap where it runs inside the head and the fans across the parts are internal, a minority.
+TEST(OpenPartsPenetration, ExposedFacesAreTheOuterSurface) {
+  const Character& c = test_character();
+  // A closed body without apparel has nothing to resolve: give it one isolated apparel vertex.
+  TriMesh body = c.dressed.body.mesh;
+  body.V.conservativeResize(body.V.rows() + 1, 3);
+  body.V.bottomRows(1) = Eigen::RowVector3f(0, 5, 0);
+  std::vector<uint8_t> mask(size_t(body.num_vertices()), 0);
+  mask.back() = 1;
+  PenetrationResolver on_closed(body.F, mask);
+  on_closed.prepare(body.V);
+  ASSERT_EQ(on_closed.num_filled_holes(), 0);
+  for (const uint8_t e : on_closed.exposed_faces()) ASSERT_EQ(e, 1);
+
+  const OpenPartsCharacter& o = c.open;
+  PenetrationResolver open(o.mesh.F, o.apparel_mask);
+  open.prepare(o.mesh.V);
+  EXPECT_GT(open.num_filled_holes(), o.num_parts);  // every part has at least one seam loop
+  int internal = 0;
+  for (const uint8_t e : open.exposed_faces()) internal += !e;
+  EXPECT_GT(internal, 0);
+  // The parts' own faces are most of the surface: at most a third of it is internal.
+  EXPECT_LT(internal, open.num_body_faces() / 3) << "of " << open.num_body_faces();
+}
+
+// Over frames of a walk (LBS with the rest weights; the apparel swings towards the body's axis, into
+// the body and out again), most apparel vertices keep their inside verdict without a winding-number query (the share
+// of queries is the share of "fallback" to per-frame queries, bounded here), and the verdicts, carried
+// or not, are those of a resolver that sees the frame afresh.
+TEST(OpenPartsPenetration, MostVerdictsCarryOverOnAWalkAndEqualFreshOnes) {
+  const Character& c = test_character();
+  const OpenPartsCharacter& o = c.open;
+  const Skeleton& skeleton = c.dressed.body.skeleton;
+  const Motion walk = retarget_motion(walk_motion(12), canonical_skeleton(), skeleton);
+  PenetrationResolver resolver(o.mesh.F, o.apparel_mask);
+  resolver.prepare(o.mesh.V);
+  int64_t carried = 0, tests = 0, inside = 0;
+  MatrixX3f V;
+  for (int t = 0; t < walk.num_frames(); ++t) {
+    linear_blend_skinning(o.mesh.V, o.body_weights, skinning_matrices(skeleton, forward_kinematics(skeleton, walk, t)), V);
+    // Apparel pulled towards the vertical line through the body's centroid by up to 40 % of its distance.
+    Eigen::RowVector3f axis = Eigen::RowVector3f::Zero();
+    int body = 0;
+    for (int v = 0; v < o.mesh.num_vertices(); ++v)
+      if (o.part[size_t(v)] >= 0) axis += V.row(v), ++body;
+    axis /= float(body);
+    for (int v = 0; v < o.mesh.num_vertices(); ++v) {
+      if (!o.apparel_mask[size_t(v)]) continue;
+      const float pull = 0.2f * (1.0f + std::sin(0.5f * float(t) + 0.02f * float(v)));
+      V(v, 0) -= pull * (V(v, 0) - axis.x()), V(v, 2) -= pull * (V(v, 2) - axis.z());
+    }
+    int frame_carried = 0;
+    const Penetration got = resolver.measure(V, &frame_carried);
+    if (t % 3 == 0) {
+      PenetrationResolver fresh(o.mesh.F, o.apparel_mask);
+      EXPECT_EQ(got.inside, fresh.measure(V).inside) << "frame " << t;
+    }
+    if (t == 0) continue;  // no previous frame to carry from
+    carried += frame_carried;
+    tests += got.total;
+    inside += got.inside;
+  }
+  EXPECT_GT(inside, 0);  // the swing does reach into the body
+  const double queried = 1.0 - double(carried) / double(tests);
+  EXPECT_LT(queried, 0.15) << "carried " << carried << " of " << tests;  // 0.079, 457 inside, when written
+}
+
 }  // namespace
 }  // namespace amt
