@@ -53,6 +53,7 @@ struct BenchOptions {
   std::vector<int> runtime_threads = {1, 2};
   std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
   bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
+  bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
 };
 
 // The calling thread's CPU time, seconds.
@@ -208,8 +209,8 @@ constexpr float kOpenPartsApparelFraction = 0.2f;
 void bench_runtime(const BenchOptions& o) {
   std::string what;
   ModelBundle bundle = bench_bundle(o.model, what);
-  std::printf("runtime   %s; apparel mask from the dressed character (the GT-mask row); walk motion; "
-              "%d timed frames after a 10-frame lead-in%s\n", what.c_str(), o.repeats,
+  std::printf("runtime   %s; apparel mask from %s; walk motion; %d timed frames after a 10-frame lead-in%s\n",
+              what.c_str(), o.segmenter_mask ? "the segmenter" : "the dressed character (the GT-mask row)", o.repeats,
               o.open_parts ? "; bodies of open, overlapping parts (--open-parts)" : "");
   const std::string scratch = (std::filesystem::temp_directory_path() / ("amt_bench_" + std::to_string(::getpid()))).string();
   std::filesystem::create_directories(scratch);
@@ -238,9 +239,12 @@ void bench_runtime(const BenchOptions& o) {
     }
     const double gen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - gen_start).count();
     const int N = mesh.num_vertices();
+    const BindResult bind =
+        bind_cached(bundle, mesh, body.skeleton.rest_joints, o.segmenter_mask ? std::vector<uint8_t>{} : mask, "");
+    const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
+    mask.assign(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel());
     int Na = 0;
     for (uint8_t m : mask) Na += m;
-    const BindResult bind = bind_cached(bundle, mesh, body.skeleton.rest_joints, mask, "");
     std::printf("runtime   %6d vertices (%d apparel, %.0f %%), %d faces%s: generated in %.1f s, bind %.2f s (%d threads)\n",
                 N, Na, 100.0 * Na / N, mesh.num_faces(), parts.c_str(), gen_seconds, bind.seconds,
                 o.runtime_threads.back());
@@ -374,6 +378,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--open-parts", options->open_parts,
                   "Runtime suite: remake the characters as real models are built, a body of many open, overlapping "
                   "parts with holes under the clothes and a hair cap (data_tools/builder/open_parts.h)");
+  bench->add_flag("--segmenter-mask", options->segmenter_mask,
+                  "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
+                  "dressed character's");
   add_threads_option(*bench);
   bench->callback([options] {
     std::printf("amt bench: %d threads\n", omp_get_max_threads());
