@@ -243,15 +243,22 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
       moved.push_back(k);
     }
   }
-  std::vector<float> still(moved.size());
+  // A smoothed vertex was outside and the body has not moved since: it is still outside when the body is
+  // farther from it than it moved (its straight path cannot have met the surface), without a winding
+  // number, which costs most near the large fans that close a body with big holes.
+  std::vector<float> still(moved.size(), -1.0f);
   std::vector<Eigen::Vector3f> again(moved.size());
+  std::vector<int> test(moved.size());
+  for (size_t m = 0; m < moved.size(); ++m) test[m] = int(m);
   tree_->update_far_field();  // when every verdict carried over, classify() did not need it
   for (int pushes = 1;; ++pushes) {
 #pragma omp parallel for schedule(dynamic, 64)
-    for (int m = 0; m < int(moved.size()); ++m) {
-      const Eigen::Vector3f p = V.row(apparel_[size_t(moved[size_t(m)])]).transpose();
+    for (int t = 0; t < int(test.size()); ++t) {
+      const int m = test[size_t(t)], k = moved[size_t(m)];
+      const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
       still[size_t(m)] = -1.0f;
       again[size_t(m)].setZero();
+      if (pushes == 1 && ring[size_t(k)] > 0 && tree.distance(p) > push[size_t(k)].norm()) continue;
       if (!tree.inside(p)) continue;
       Eigen::Vector3f closest;
       const float d = tree.distance(p, &closest, &exposed_);
@@ -259,13 +266,14 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
       if (d > 1e-9f) again[size_t(m)] = (closest - p) * ((d + options_.margin) / d);
     }
     if (pushes == kMaxPushes) break;
-    bool pushed = false;
-    for (size_t m = 0; m < moved.size(); ++m) {
-      if (still[m] < 0) continue;
-      V.row(apparel_[size_t(moved[m])]) += again[m].transpose();
-      pushed = true;
+    std::vector<int> pushed;
+    for (const int m : test) {
+      if (still[size_t(m)] < 0) continue;
+      V.row(apparel_[size_t(moved[size_t(m)])]) += again[size_t(m)].transpose();
+      pushed.push_back(m);
     }
-    if (!pushed) break;
+    if (pushed.empty()) break;
+    test = std::move(pushed);
   }
   for (float d : still) {
     if (d >= 0) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(d);
