@@ -26,6 +26,7 @@
 #include "app/repository.h"
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/body_generator.h"
+#include "data_tools/builder/open_parts.h"
 #include "data_tools/garment/cloth_retarget.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
@@ -51,6 +52,8 @@ struct BenchOptions {
   std::vector<int> runtime_sizes = {5000, 20000, 50000};
   std::vector<int> runtime_threads = {1, 2};
   std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
+  bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
+  bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
 };
 
 // The calling thread's CPU time, seconds.
@@ -193,40 +196,70 @@ ModelBundle bench_bundle(const std::string& given, std::string& what) {
   return b;
 }
 
+// Open-parts characters of the runtime suite: the body's share of the requested size before the parts'
+// copies and the cap, and the apparel fraction, chosen so that a requested size of about 14.5k gives
+// about that many vertices with 10-30 % apparel.
+constexpr float kOpenPartsBodyShare = 0.66f;
+constexpr float kOpenPartsApparelFraction = 0.2f;
+
 // The runtime (issue 6): generated dressed characters of about `size` vertices with ~30 % apparel,
-// bind time, per-frame latency (median, p95) and its split, peak memory, on 1 and 2 threads.
+// bind time, per-frame latency (median, p95) and its split, peak memory, on 1 and 2 threads. With
+// --open-parts the characters are remade as real models are built (data_tools/builder/open_parts.h):
+// a body of many open, overlapping parts with holes under the clothes and a hair cap, ~20 % apparel.
 void bench_runtime(const BenchOptions& o) {
   std::string what;
   ModelBundle bundle = bench_bundle(o.model, what);
-  std::printf("runtime   %s; apparel mask from the dressed character (the GT-mask row); walk motion; "
-              "%d timed frames after a 10-frame lead-in\n", what.c_str(), o.repeats);
+  std::printf("runtime   %s; apparel mask from %s; walk motion; %d timed frames after a 10-frame lead-in%s\n",
+              what.c_str(), o.segmenter_mask ? "the segmenter" : "the dressed character (the GT-mask row)", o.repeats,
+              o.open_parts ? "; bodies of open, overlapping parts (--open-parts)" : "");
   const std::string scratch = (std::filesystem::temp_directory_path() / ("amt_bench_" + std::to_string(::getpid()))).string();
   std::filesystem::create_directories(scratch);
   for (const int size : o.runtime_sizes) {
     set_thread_count(o.runtime_threads.back());
     const auto gen_start = std::chrono::steady_clock::now();
     ApparelOptions dress;
-    dress.vertex_fraction = 0.3f;
+    dress.vertex_fraction = o.open_parts ? kOpenPartsApparelFraction : 0.3f;
     dress.min_pieces = 2;
     dress.max_pieces = 3;
-    const GeneratedBody body = generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(size * 0.7)));
-    const DressedCharacter character = dress_character(body, 7, dress);
+    const float body_share = o.open_parts ? kOpenPartsBodyShare : 0.7f;
+    const GeneratedBody body = generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(size * body_share)));
+    // Open parts: the items of the issue's real model (twin tails, a skirt on physics chains, a tie).
+    const DressedCharacter dressed =
+        o.open_parts ? dress_character_with(body, {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails, ApparelKind::kRibbons}, 7, dress)
+                     : dress_character(body, 7, dress);
+    TriMesh mesh = dressed.mesh;
+    std::vector<uint8_t> mask = dressed.apparel_mask;
+    std::string parts;
+    if (o.open_parts) {
+      OpenPartsCharacter open = open_parts_character(dressed);
+      parts = ", " + std::to_string(open.num_parts) + " open body parts, " + std::to_string(open.dropped_faces) +
+              " body faces dropped under the clothes";
+      mesh = std::move(open.mesh);
+      mask = std::move(open.apparel_mask);
+    }
     const double gen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - gen_start).count();
-    const int N = character.mesh.num_vertices();
+    const int N = mesh.num_vertices();
+    const BindResult bind =
+        bind_cached(bundle, mesh, body.skeleton.rest_joints, o.segmenter_mask ? std::vector<uint8_t>{} : mask, "");
+    const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
+    mask.assign(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel());
     int Na = 0;
-    for (uint8_t m : character.apparel_mask) Na += m;
-    const BindResult bind = bind_cached(bundle, character.mesh, body.skeleton.rest_joints, character.apparel_mask, "");
-    std::printf("runtime   %6d vertices (%d apparel, %.0f %%), %d faces: generated in %.1f s, bind %.2f s (%d threads)\n", N,
-                Na, 100.0 * Na / N, character.mesh.num_faces(), gen_seconds, bind.seconds, o.runtime_threads.back());
+    for (uint8_t m : mask) Na += m;
+    std::printf("runtime   %6d vertices (%d apparel, %.0f %%), %d faces%s: generated in %.1f s, bind %.2f s (%d threads)\n",
+                N, Na, 100.0 * Na / N, mesh.num_faces(), parts.c_str(), gen_seconds, bind.seconds,
+                o.runtime_threads.back());
     const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
     for (const int threads : o.runtime_threads) {
       set_thread_count(threads);
       for (const bool resolve : {true}) {
-        RuntimeSession session(bundle, bind.bound, character.mesh.F, resolve);
+        const auto session_start = std::chrono::steady_clock::now();
+        RuntimeSession session(bundle, bind.bound, mesh.F, resolve);
+        const double session_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - session_start).count();
         const Transforms first = forward_kinematics(body.skeleton, walk, 0);
         const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
         for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
-        GlbStreamWriter writer(scratch + "/bench.glb", character.mesh.F, N, 30.0f);
+        GlbStreamWriter writer(scratch + "/bench.glb", mesh.F, N, 30.0f);
         std::vector<double> totals, model, pen, out, lbs, app, ref;
         MatrixX3f V;
         PenetrationReport report;
@@ -250,12 +283,12 @@ void bench_runtime(const BenchOptions& o) {
         std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
                     "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
                     "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
-                    "RSS %.0f MB, peak %.0f MB\n",
+                    "RSS %.0f MB, peak %.0f MB; session set-up %.2f s\n",
                     N, threads, threads > 1 ? "s" : "", 1e3 * median, 1e3 * p95, 1.0 / median, 1e3 * median_p95(model).first,
                     1e3 * median_p95(lbs).first, 1e3 * median_p95(app).first, 1e3 * median_p95(ref).first,
                     1e3 * median_p95(pen).first, 1e3 * median_p95(out).first, 100.0 * before.share(),
                     100.0 * after.share(), before.total > 0 ? 100.0 * double(carried) / before.total : 0.0, resident_mb(),
-                    peak_resident_mb());
+                    peak_resident_mb(), session_seconds);
         std::fflush(stdout);
       }
     }
@@ -342,6 +375,12 @@ void add_bench_command(CLI::App& app) {
   bench->add_option("--model", options->model,
                     "Model folder of the runtime suite (fresh networks when absent). " +
                         repository_default_help("models/pretrained"));
+  bench->add_flag("--open-parts", options->open_parts,
+                  "Runtime suite: remake the characters as real models are built, a body of many open, overlapping "
+                  "parts with holes under the clothes and a hair cap (data_tools/builder/open_parts.h)");
+  bench->add_flag("--segmenter-mask", options->segmenter_mask,
+                  "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
+                  "dressed character's");
   add_threads_option(*bench);
   bench->callback([options] {
     std::printf("amt bench: %d threads\n", omp_get_max_threads());

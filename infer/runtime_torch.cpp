@@ -57,6 +57,9 @@ RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, 
   output_bound_ = 10.0f * std::max(extent.norm().item<float>(), 0.1f);
   const at::Tensor root = bound_.joints[0].contiguous();
   root_rest_ = Eigen::Vector3f(root[0].item<float>(), root[1].item<float>(), root[2].item<float>());
+  // The resolver's body tree and its exposed faces on the rest pose, before the first frame.
+  const at::Tensor rest = bound_.V.to(at::kFloat).contiguous();
+  resolver_.prepare(Eigen::Map<const MatrixX3f>(rest.data_ptr<float>(), rest.size(0), 3));
 }
 
 void RuntimeSession::advance(const at::Tensor& joint_transforms) {

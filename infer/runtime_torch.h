@@ -34,7 +34,8 @@ struct FrameTimes {
 /// pose), the penetration resolver and a frame buffer. The bundle must outlive the session.
 class RuntimeSession {
  public:
-  /// Starts from rest_apparel_history. `resolve` switches penetration resolution on.
+  /// Starts from rest_apparel_history. `resolve` switches penetration resolution on. Prepares the
+  /// resolver on the rest pose (PenetrationResolver::prepare).
   RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
                  PenetrationOptions penetration = {});
 

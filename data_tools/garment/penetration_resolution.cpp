@@ -7,6 +7,14 @@
 #include "data_tools/geometry/winding_number.h"
 
 namespace amt {
+namespace {
+
+// How far out of a face's centroid, along its normal, the point is that decides whether the face is
+// exposed (metres): beyond the rounding of the winding number next to the surface, within the gap a
+// modeller leaves between overlapping parts (data_tools/builder/open_parts.h insets its seam rings 2 mm).
+constexpr float kExposureOffset = 1e-3f;
+
+}  // namespace
 
 PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask,
                                          PenetrationOptions options)
@@ -38,6 +46,7 @@ PenetrationResolver::PenetrationResolver(const MatrixX3i& F, const std::vector<u
   if (!faces.empty()) {
     HoleFill fill = fill_holes(body_faces_, int(body_.size()));
     holes_ = std::move(fill.holes);
+    num_fan_faces_ = int(fill.faces.rows());
     body_faces_.conservativeResize(Eigen::Index(faces.size()) + fill.faces.rows(), 3);
     body_faces_.bottomRows(fill.faces.rows()) = fill.faces;
   }
@@ -65,10 +74,49 @@ const WindingNumberTree& PenetrationResolver::posed_body(const MatrixX3f& V) {
   }
   if (tree_) {
     tree_->refit(body_scratch_, false);  // the far field only when a query needs it (classify)
-  } else {
-    tree_ = std::make_unique<WindingNumberTree>(body_scratch_, body_faces_);
+    return *tree_;
   }
-  return *tree_;
+  tree_ = std::make_unique<WindingNumberTree>(body_scratch_, body_faces_);
+  // Exposed faces: the point kExposureOffset out of the centroid is not inside the body. Degenerate
+  // faces count as exposed (they are never strictly nearer than their neighbours).
+  const WindingNumberTree& tree = *tree_;
+  exposed_.assign(size_t(body_faces_.rows()), 1);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (Eigen::Index f = 0; f < body_faces_.rows(); ++f) {
+    const Eigen::Vector3f a = body_scratch_.row(body_faces_(f, 0)), b = body_scratch_.row(body_faces_(f, 1)),
+                          c = body_scratch_.row(body_faces_(f, 2));
+    const Eigen::Vector3f n = (b - a).cross(c - a);
+    const float length = n.norm();
+    if (length > 0) exposed_[size_t(f)] = !tree.inside((a + b + c) / 3.0f + (kExposureOffset / length) * n);
+  }
+  // Fans across the body: a hole whose centre lies deep in the body (farther from the skin than half
+  // the hole's mean radius) is not a patch of missing skin but a cut through a part (a seam loop, the two
+  // rims of a band of skin dropped around a waist): its fan is no way out, whichever side it faces.
+  const Eigen::Index num_real = body_faces_.rows() - Eigen::Index(num_fan_faces_);
+  std::vector<uint8_t> real(size_t(body_faces_.rows()), 0);
+  std::fill(real.begin(), real.begin() + num_real, 1);
+  std::vector<uint8_t> across(holes_.size(), 0);
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int h = 0; h < int(holes_.size()); ++h) {
+    const Eigen::Vector3f centre = body_scratch_.row(Eigen::Index(body_.size()) + h).transpose();
+    float radius = 0;
+    for (const int32_t k : holes_[size_t(h)]) radius += (body_scratch_.row(k).transpose() - centre).norm();
+    radius /= float(holes_[size_t(h)].size());
+    across[size_t(h)] = tree.distance(centre, nullptr, &real) > 0.5f * radius;
+  }
+  for (Eigen::Index f = num_real; f < body_faces_.rows(); ++f) {
+    const int32_t centre = body_faces_.row(f).maxCoeff();  // the fan's centre, numbered after body_
+    if (across[size_t(centre) - body_.size()]) exposed_[size_t(f)] = 0;
+  }
+  if (std::find(exposed_.begin(), exposed_.end(), 1) == exposed_.end()) exposed_.assign(exposed_.size(), 1);
+  return tree;
+}
+
+void PenetrationResolver::prepare(const MatrixX3f& V) {
+  if (tree_ || apparel_.empty() || body_faces_.rows() == 0) return;
+  AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
+            apparel_.size() + body_.size(), " vertices, found ", V.rows());
+  posed_body(V);
 }
 
 int PenetrationResolver::classify(const MatrixX3f& V) {
@@ -116,7 +164,7 @@ Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
   std::vector<float> depth(apparel_.size(), 0.0f);
 #pragma omp parallel for schedule(dynamic, 64)
   for (int k = 0; k < int(apparel_.size()); ++k) {
-    if (inside_[size_t(k)]) depth[size_t(k)] = tree.distance(V.row(apparel_[size_t(k)]).transpose());
+    if (inside_[size_t(k)]) depth[size_t(k)] = tree.distance(V.row(apparel_[size_t(k)]).transpose(), nullptr, &exposed_);
   }
   for (size_t k = 0; k < depth.size(); ++k) {  // summed in order: the same total on any thread count
     if (inside_[k]) ++p.inside, p.depth_sum_cm += 100.0 * double(depth[k]);
@@ -133,7 +181,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   const WindingNumberTree& tree = posed_body(V);
   report.carried = classify(V);
-  // Push: every inside vertex to its closest body point plus the margin along the way out.
+  // Push: every inside vertex to its closest exposed body point plus the margin along the way out.
   std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
   std::vector<float> depth(size_t(Na), 0.0f);
   const std::vector<uint8_t>& inside = inside_;
@@ -142,7 +190,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     if (!inside[size_t(k)]) continue;
     const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
     Eigen::Vector3f closest;
-    const float d = tree.distance(p, &closest);
+    const float d = tree.distance(p, &closest, &exposed_);
     depth[size_t(k)] = d;
     if (d > 1e-9f) {
       push[size_t(k)] = (closest - p) * ((d + options_.margin) / d);
@@ -186,7 +234,8 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     report.smoothed += int(next.size());
     frontier = std::move(next);
   }
-  // Apply, then re-test the moved vertices (the others keep their verdict: outside).
+  // Apply, then re-test the moved vertices (the others keep their verdict: outside); one still inside
+  // (pushed out of one part into an overlapping one) is pushed again, up to kMaxPushes pushes in all.
   std::vector<int> moved;
   for (int k = 0; k < Na; ++k) {
     if (ring[size_t(k)] >= 0) {
@@ -194,12 +243,37 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
       moved.push_back(k);
     }
   }
+  // A smoothed vertex was outside and the body has not moved since: it is still outside when the body is
+  // farther from it than it moved (its straight path cannot have met the surface), without a winding
+  // number, which costs most near the large fans that close a body with big holes.
   std::vector<float> still(moved.size(), -1.0f);
+  std::vector<Eigen::Vector3f> again(moved.size());
+  std::vector<int> test(moved.size());
+  for (size_t m = 0; m < moved.size(); ++m) test[m] = int(m);
   tree_->update_far_field();  // when every verdict carried over, classify() did not need it
+  for (int pushes = 1;; ++pushes) {
 #pragma omp parallel for schedule(dynamic, 64)
-  for (int m = 0; m < int(moved.size()); ++m) {
-    const Eigen::Vector3f p = V.row(apparel_[size_t(moved[size_t(m)])]).transpose();
-    if (tree.inside(p)) still[size_t(m)] = tree.distance(p);
+    for (int t = 0; t < int(test.size()); ++t) {
+      const int m = test[size_t(t)], k = moved[size_t(m)];
+      const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+      still[size_t(m)] = -1.0f;
+      again[size_t(m)].setZero();
+      if (pushes == 1 && ring[size_t(k)] > 0 && tree.distance(p) > push[size_t(k)].norm()) continue;
+      if (!tree.inside(p)) continue;
+      Eigen::Vector3f closest;
+      const float d = tree.distance(p, &closest, &exposed_);
+      still[size_t(m)] = d;
+      if (d > 1e-9f) again[size_t(m)] = (closest - p) * ((d + options_.margin) / d);
+    }
+    if (pushes == kMaxPushes) break;
+    std::vector<int> pushed;
+    for (const int m : test) {
+      if (still[size_t(m)] < 0) continue;
+      V.row(apparel_[size_t(moved[size_t(m)])]) += again[size_t(m)].transpose();
+      pushed.push_back(m);
+    }
+    if (pushed.empty()) break;
+    test = std::move(pushed);
   }
   for (float d : still) {
     if (d >= 0) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(d);

@@ -14,6 +14,20 @@
 // closest point inside a triangle this is the triangle's normal, and it stays correct at edges and
 // corners where face normals disagree.
 //
+// Bodies of many open, overlapping parts (real MMD/PMX models: a face, a hair cap, sleeves, a body with
+// holes under the clothes; data_tools/builder/open_parts.h is a stand-in): closing every part's holes
+// makes each part a closed surface and the body their union, whose winding number is at least 1 inside
+// any part (overlaps count twice), so the inside test keeps its meaning. What changes is the way out:
+// the fans that close a part's seam, the seam ring a part tucks under its neighbour and a cap's rim
+// inside the head are surfaces inside the body, and a vertex pushed to them stays inside. So the
+// faces are classified once, on the first pose the resolver sees (prepare(), the rest pose in the
+// runtime): a face is exposed when the point a millimetre out of its centroid along its normal is not
+// inside the body, internal otherwise; a fan whose centre lies deep in the body (farther from the skin
+// than half the hole's radius: a seam loop, or one rim of a band of skin dropped around a waist, which
+// the fan crosses the body to close) is internal too; a penetrating vertex is pushed to its closest
+// exposed body point. On a closed body without overlaps every face is exposed and nothing changes. A vertex still
+// inside after its push (between two overlapping parts) is pushed again, up to kMaxPushes times.
+//
 // Per frame cost: the winding-number tree over the body is built once, on the first frame, and then
 // refitted to each frame's posed body (WindingNumberTree::refit, O(#F) without sorting) instead of
 // rebuilt: the body's faces do not change between frames, only its positions. And since that surface
@@ -55,6 +69,10 @@ struct PenetrationReport {
   int pushed = 0, smoothed = 0, carried = 0;
 };
 
+/// Pushes of a vertex in one resolve(): the first, and more while it is still inside (see the file
+/// comment).
+inline constexpr int kMaxPushes = 3;
+
 /// Resolves the penetration of a character's apparel into its body, frame after frame. Built once per
 /// character from its faces and apparel mask; resolve() is then called with each posed frame. It keeps
 /// the body's winding-number tree between calls (refitted to each frame), so one resolver serves one
@@ -64,6 +82,11 @@ class PenetrationResolver {
   /// F #F by 3 faces; apparel_mask #V entries (1 = apparel). A character without apparel or without
   /// a closed body part (no face with three body vertices) is accepted: resolve() then does nothing.
   PenetrationResolver(const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask, PenetrationOptions options = {});
+
+  /// Builds the body's tree on V (#V by 3, metres; the rest pose) and classifies its faces as exposed or
+  /// internal there (file comment), ahead of the first frame; without it the first measure() or resolve()
+  /// does this on its frame. Nothing when the tree is already built.
+  void prepare(const MatrixX3f& V);
 
   /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
   /// `carried`, when given, receives the number of verdicts carried over from the previous call.
@@ -81,6 +104,9 @@ class PenetrationResolver {
   /// over between frames; and the number of holes filled.
   bool closed_body() const { return closed_body_; }
   int num_filled_holes() const { return int(holes_.size()); }
+  /// Per face of the closed body part (num_body_faces(), the fans last): 1 exposed, 0 internal (file
+  /// comment); empty until the first pose.
+  const std::vector<uint8_t>& exposed_faces() const { return exposed_; }
 
  private:
   // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
@@ -96,8 +122,10 @@ class PenetrationResolver {
   MatrixX3i body_faces_;                 // faces with three body vertices, renumbered into body_, then
                                          // the fans closing the holes (centre of hole h: body_.size() + h)
   std::vector<std::vector<int32_t>> holes_;  // boundary vertices of each hole, positions in body_
+  int num_fan_faces_ = 0;                // the last rows of body_faces_
   Adjacency apparel_adjacency_;          // over apparel_ positions (edges inside the apparel)
   std::unique_ptr<WindingNumberTree> tree_;  // over body_faces_, posed as in the last call
+  std::vector<uint8_t> exposed_;         // per row of body_faces_: exposed (1) or internal, on the tree's first pose
   MatrixX3f body_scratch_;               // body positions of the last call
   bool closed_body_ = false;             // is_closed_surface(body_faces_): false only without body faces
   MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)

@@ -340,7 +340,10 @@ bool WindingNumberTree::inside(const Eigen::Vector3f& p) const {
   return winding_number(p) > 0.5;
 }
 
-float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest) const {
+float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest,
+                                  const std::vector<uint8_t>* faces) const {
+  AMT_CHECK(!faces || faces->size() == triangles_.size(), "WindingNumberTree::distance: faces: expected ",
+            triangles_.size(), " flags (one per triangle), found ", faces ? faces->size() : 0);
   const Eigen::Vector3d q = to_double(p);
   double best2 = std::numeric_limits<double>::infinity();
   Eigen::Vector3d best_point = q;
@@ -354,6 +357,7 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
     if (node.is_leaf()) {
       for (int32_t t = node.first; t < node.first + node.count; ++t) {
         const Triangle& tri = triangles_[t];
+        if (faces && !(*faces)[size_t(tri.face)]) continue;
         const Eigen::Vector3d x = closest_point_on_triangle(q, to_double(tri.a), to_double(tri.b), to_double(tri.c));
         const double d2 = (x - q).squaredNorm();
         if (d2 < best2) {

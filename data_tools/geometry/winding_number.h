@@ -9,6 +9,7 @@
 // Written here by hand: no Debian package offers a fast winding number. libigl, which has one, is not
 // packaged; CGAL (libcgal-dev) has only ray-cast inside tests, which need a watertight mesh; OpenVDB's
 // signed distance fields need a voxelisation whose resolution would limit the penetration depth.
+#include <cstdint>
 #include <vector>
 
 #include "data_tools/geometry/types.h"
@@ -46,8 +47,11 @@ class WindingNumberTree {
   bool inside(const Eigen::Vector3f& p) const;
 
   /// Unsigned distance (metres) from p to the nearest point of the surface; `closest`, when given,
-  /// receives that point. Inside the body this is the penetration depth.
-  float distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest = nullptr) const;
+  /// receives that point. Inside the body this is the penetration depth. `faces`, when given, holds
+  /// #F flags in the order of the construction's F: only the triangles flagged non-zero count
+  /// (infinity, and p as the closest point, when none is).
+  float distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest = nullptr,
+                 const std::vector<uint8_t>* faces = nullptr) const;
 
   /// winding_number() of every row of P (#P by 3), in parallel with OpenMP. Returns #P values.
   Eigen::VectorXd winding_numbers(const MatrixX3f& P) const;
