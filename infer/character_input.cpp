@@ -19,6 +19,7 @@
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/obj_io.h"
 #include "data_tools/formats/pmx_import.h"
+#include "data_tools/builder/pmx_dataset.h"
 #include "data_tools/builder/pmx_physics.h"
 
 namespace amt {
@@ -167,22 +168,7 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
         c.rig_apparel = "PMX physics: " + std::to_string(driven) + " vertices on bones that " +
                         std::to_string(simulated) + " simulated rigid bodies drive";
       }
-      Skeleton& s = c.file_skeleton;
-      s.rest_joints.resize(Eigen::Index(model.bones.size()), 3);
-      for (size_t b = 0; b < model.bones.size(); ++b) {
-        s.names.push_back(model.bones[b].name.empty() ? model.bones[b].name_english : model.bones[b].name);
-        s.parents.push_back(model.bones[b].parent);
-        s.rest_joints.row(Eigen::Index(b)) = model.bones[b].position.transpose();
-      }
-      // Names must be unique for mapping; PMX allows repeats.
-      for (size_t b = 0; b < s.names.size(); ++b) {
-        for (size_t k = 0; k < b; ++k) {
-          if (s.names[k] == s.names[b]) {
-            s.names[b] += "_" + std::to_string(b);
-            break;
-          }
-        }
-      }
+      c.file_skeleton = pmx_skeleton(model);  // names made unique: PMX allows repeats
       AMT_CHECK(!model.bones.empty() || !spec.joints.empty(), path,
                 ": joints: the character has no skeleton (no bones): expected --character-joints FILE");
       has_skeleton = !model.bones.empty();
