@@ -102,6 +102,9 @@ void add_build_command(CLI::App& dataset) {
   build->add_option("--pmx", options->pmx,
                     "PMX models (files or folders of *.pmx), each a character simulated with its own rigid bodies "
                     "and joints; alone or beside --characters N");
+  build->add_option("--pmx-metres-per-unit", options->pmx_metres_per_unit,
+                    "Metres per PMX unit of the --pmx models (MMD's 0.08; physics runs in their units)")
+      ->capture_default_str();
   auto* motions = build->add_option(
       "--motions", options->motions,
       "Folder of BVH files (every *.bvh); \"\" for none. " + repository_default_help(kDefaultMotions));

@@ -121,6 +121,7 @@ json make_manifest(const DatasetBuildOptions& o, const DatasetPlan& plan) {
                           {"test_clip_every", o.test_clip_every},
                           {"clips_per_commit", o.clips_per_commit},
                           {"apparel", apparel_settings(o.apparel)}};
+  if (!o.pmx.empty()) manifest["settings"]["pmx_metres_per_unit"] = o.pmx_metres_per_unit;
   json bvh = json::array();
   if (!o.motions.empty()) {
     for (const std::string& path : list_bvh_files(o.motions)) {
@@ -448,6 +449,8 @@ void validate_build_options(const DatasetBuildOptions& o) {
   const int least = o.pmx.empty() ? 1 : 0;
   AMT_CHECK(o.characters >= least && o.characters <= 100000, "dataset build: --characters: expected ", least,
             " to 100000", o.pmx.empty() ? " (or PMX models with --pmx)" : "", ", found ", o.characters);
+  AMT_CHECK(std::isfinite(o.pmx_metres_per_unit) && o.pmx_metres_per_unit > 0,
+            "dataset build: --pmx-metres-per-unit: expected a finite length > 0, found ", o.pmx_metres_per_unit);
   AMT_CHECK(o.vertices >= kMinBodyVertices && o.vertices <= kMaxBodyVertices, "dataset build: --vertices: expected ",
             kMinBodyVertices, " to ", kMaxBodyVertices, " vertices per body, found ", o.vertices);
   AMT_CHECK(o.procedural >= 0 && o.procedural <= 100000, "dataset build: --procedural: expected 0 to 100000, found ",
@@ -676,7 +679,7 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
       report.dress_seconds += seconds_since(t0);
       apparel_bodies += dressed->num_apparel_bodies();
     } else {
-      pmx.emplace(load_pmx_character(planned.pmx));
+      pmx.emplace(load_pmx_character(planned.pmx, std::nullopt, o.pmx_metres_per_unit));
       report.body_seconds += seconds_since(t0);
       apparel_bodies += pmx->simulated_bodies;
       if (o.progress) {

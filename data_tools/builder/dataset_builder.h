@@ -35,6 +35,7 @@
 #include "data_tools/builder/apparel_simulation.h"
 #include "data_tools/builder/physics.h"
 #include "data_tools/builder/motion_library.h"
+#include "data_tools/formats/pmx_import.h"
 
 namespace amt {
 
@@ -62,6 +63,9 @@ struct DatasetBuildOptions {
   /// character simulated with its own rigid bodies and joints (data_tools/builder/pmx_dataset.h), after the C
   /// procedural ones.
   std::vector<std::string> pmx;
+  /// Metres per PMX unit of those models (finite, > 0): MMD's 0.08 by default. The physics runs in the models' own
+  /// units; the shards store metres.
+  float pmx_metres_per_unit = kPmxMetresPerUnit;
   /// Folder of BVH files (every *.bvh); empty for procedural motions only.
   std::string motions;
   /// Number of procedural motion clips (>= 0).
