@@ -26,6 +26,10 @@ class PmxPhysicsPlayer {
   PmxPhysicsPlayer(const std::string& path, const std::optional<JointMapFile>& joint_map,
                    const PmxSimulationOptions& options);
 
+  /// Not copyable or movable: the simulator points at the character it holds.
+  PmxPhysicsPlayer(const PmxPhysicsPlayer&) = delete;
+  PmxPhysicsPlayer& operator=(const PmxPhysicsPlayer&) = delete;
+
   const PmxCharacter& character() const { return character_; }
 
   /// Starts at the rest pose (the bodies settle for options.settle_seconds), then runs `lead_in` frames that blend
