@@ -1,4 +1,7 @@
 // `amt dataset ...` subcommands.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -14,6 +17,8 @@
 #include "data_tools/geometry/error.h"
 #include "data_tools/builder/example_dataset.h"
 #include "data_tools/builder/garment_pairs.h"
+#include "data_tools/builder/pmx_character_export.h"
+#include "data_tools/formats/pmx_export.h"
 
 namespace amt::app {
 namespace {
@@ -209,6 +214,51 @@ void add_check_command(CLI::App& dataset) {
   });
 }
 
+// `amt dataset export-pmx --seed S --character I --out FILE.pmx`: character I of the dataset `amt dataset build
+// --seed S` makes, dressed, as an MMD model with its physics rig (test data for the PMX paths).
+void add_export_pmx_command(CLI::App& dataset) {
+  auto* export_pmx = dataset.add_subcommand(
+      "export-pmx", "Write a character of a dataset build as an MMD model (PMX 2.0) with its apparel physics rig");
+  auto options = std::make_shared<DatasetBuildOptions>();
+  auto index = std::make_shared<int>(0);
+  auto export_options = std::make_shared<PmxCharacterExportOptions>();
+  export_pmx->add_option("--out", options->out, "Output .pmx file (written to a temporary name, then renamed)")
+      ->required();
+  export_pmx->add_option("--seed", options->seed, "Seed of the dataset build (as amt dataset build --seed)")
+      ->capture_default_str();
+  export_pmx->add_option("--character", *index, "Index of the character (character-0007 is 7)")->capture_default_str();
+  export_pmx->add_option("--vertices", options->vertices, "Target vertex count of the body before dressing")
+      ->capture_default_str();
+  export_pmx->add_option("--metres-per-unit", export_options->metres_per_unit,
+                         "Metres per PMX unit (0.1 makes MMD's gravity the builder's)")
+      ->capture_default_str();
+  add_threads_option(*export_pmx);
+  export_pmx->callback([options, index, export_options] {
+    const std::string& out = options->out;
+    std::string extension = std::filesystem::path(out).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    AMT_CHECK(extension == ".pmx", out, ": --out: expected a file name ending in .pmx");
+    AMT_CHECK(*index >= 0 && *index < 100000, "dataset export-pmx: --character: expected 0 to 99999, found ", *index);
+    AMT_CHECK(options->vertices >= kMinBodyVertices && options->vertices <= kMaxBodyVertices,
+              "dataset export-pmx: --vertices: expected ", kMinBodyVertices, " to ", kMaxBodyVertices,
+              " vertices per body, found ", options->vertices);
+    const float scale = export_options->metres_per_unit;
+    AMT_CHECK(std::isfinite(scale) && scale > 0, "dataset export-pmx: --metres-per-unit: expected a number > 0, found ",
+              scale);
+    check_replaceable_file(out);  // before the minutes of dressing, not after
+    options->characters = *index + 1;  // the seeds of character I do not depend on the count
+    const DressedCharacter dressed = dataset_character(*options, *index);
+    export_options->name = std::filesystem::path(out).stem().string();
+    const PmxModel model = pmx_from_character(dressed, *export_options);
+    write_pmx(model, out);
+    const int apparel = static_cast<int>(std::count(dressed.apparel_mask.begin(), dressed.apparel_mask.end(), 1));
+    std::cout << "wrote " << out << ": " << model.vertices.size() << " vertices (" << apparel << " apparel), "
+              << model.bones.size() << " bones, " << model.rigid_bodies.size() << " rigid bodies ("
+              << dressed.num_apparel_bodies() << " simulated), " << model.joints.size() << " joints\n";
+  });
+}
+
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
@@ -220,6 +270,7 @@ void add_dataset_command(CLI::App& app) {
   add_build_command(*dataset);
   add_pairs_command(*dataset);
   add_check_command(*dataset);
+  add_export_pmx_command(*dataset);
 }
 
 }  // namespace amt::app

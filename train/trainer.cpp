@@ -485,6 +485,50 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
   return task;
 }
 
+// === Outputs
+
+// `--out` replaces only what amt wrote there (README, "Outputs"): the folder may hold anything else, but a
+// checkpoint or log this run writes must be missing, or a checkpoint amt wrote for the same module (kind), or a
+// log whose header is a training log's. A user's file, a folder or a link under one of those names, or an --out
+// that is not a folder, is refused before any file is touched.
+void check_replaceable_outputs(const std::string& out_dir, const Task& task, const std::string& log_stem) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  const fs::file_status folder = fs::symlink_status(out_dir, error);
+  if (!fs::exists(folder)) return;
+  AMT_CHECK(fs::is_directory(folder), out_dir, ": --out: expected a folder (new or amt's), found ",
+            fs::is_regular_file(folder) ? "a file" : "something else", ": name a new folder");
+  const auto existing = [&](const std::string& stem, const char* extension) {
+    const fs::path path = fs::path(out_dir) / (stem + extension);
+    const fs::file_status status = fs::symlink_status(path, error);
+    if (!fs::exists(status)) return std::string();
+    AMT_CHECK(fs::is_regular_file(status), path.string(), ": --out: this run writes a ", extension,
+              " file of that name, found ", fs::is_directory(status) ? "a folder" : "a link or special file",
+              ": refusing to replace it (name another --out)");
+    return path.string();
+  };
+  for (const Part& part : task.parts) {
+    const std::string checkpoint = existing(part.stem, ".ckpt");
+    if (checkpoint.empty()) continue;
+    try {
+      read_checkpoint_info(checkpoint, part.kind);
+    } catch (const Error& e) {
+      std::string why = e.what();
+      if (why.rfind(checkpoint + ": ", 0) == 0) why.erase(0, checkpoint.size() + 2);
+      throw Error(checkpoint + ": --out: this run writes its " + part.stem + " checkpoint there, and the file is not " +
+                  "one amt wrote for that module (" + why + "): refusing to replace it (name another --out)");
+    }
+  }
+  const std::string log = existing(log_stem, ".csv");
+  if (log.empty()) return;
+  std::ifstream in(log);
+  std::string header;
+  std::getline(in, header);
+  AMT_CHECK(header.rfind("step,loss,", 0) == 0, log, ": --out: this run writes its training log there, and the file ",
+            "is not a training log amt wrote (its first line is not 'step,loss,...'): refusing to replace it (name ",
+            "another --out)");
+}
+
 // === Log and progress
 
 // Keeps the header and the rows of steps <= `last_step` of an existing log (a resumed run replaces
@@ -682,6 +726,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   }
   const bool writes = rank == 0;
   if (writes) {
+    check_replaceable_outputs(o.out_dir, task, task.log_stem);
     std::error_code error;
     std::filesystem::create_directories(o.out_dir, error);
     AMT_CHECK(!error, o.out_dir, ": cannot create the output folder (", error.message(), ")");

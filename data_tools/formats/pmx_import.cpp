@@ -19,36 +19,14 @@
 
 #include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
+#include "data_tools/formats/pmx_field.h"
 #include "data_tools/geometry/mesh.h"
 
 namespace amt {
 namespace {
 
-// === Field names for messages
-
-// The path of the field being read, formatted only when an error is reported:
-// table[index].member[sub_index].sub_member, each part present when set.
-struct Field {
-  const char* table;
-  int64_t index = -1;
-  const char* member = nullptr;
-  int64_t sub_index = -1;
-  const char* sub_member = nullptr;
-
-  Field(const char* table_name) : table(table_name) {}  // NOLINT: implicit, a field name reads as a string
-  Field(const char* table_name, int64_t i, const char* member_name = nullptr, int64_t k = -1,
-        const char* sub_member_name = nullptr)
-      : table(table_name), index(i), member(member_name), sub_index(k), sub_member(sub_member_name) {}
-
-  std::string str() const {
-    std::string s = table;
-    if (index >= 0) s += "[" + std::to_string(index) + "]";
-    if (member) s += std::string(".") + member;
-    if (sub_index >= 0) s += "[" + std::to_string(sub_index) + "]";
-    if (sub_member) s += std::string(".") + sub_member;
-    return s;
-  }
-};
+// Field names for messages (data_tools/formats/pmx_field.h).
+using Field = PmxField;
 
 // === Text
 
@@ -72,9 +50,8 @@ void append_utf8(uint32_t code_point, std::string& out) {
 
 constexpr uint32_t kReplacementCharacter = 0xFFFD;
 
-// Copies UTF-8 text, replacing every byte that does not start a well-formed sequence (RFC 3629: no overlong
-// forms, no surrogates, nothing above U+10FFFF) with U+FFFD, so that names are always valid UTF-8.
-std::string sanitize_utf8(const uint8_t* bytes, size_t size) {
+// See pmx_import.h's sanitize_utf8.
+std::string sanitized_utf8(const uint8_t* bytes, size_t size) {
   std::string out;
   out.reserve(size);
   size_t i = 0;
@@ -201,7 +178,7 @@ class Reader {
       if (length % 2 != 0) fail_at(at, field, "expected an even byte length for UTF-16LE text, found ", length);
       return utf16le_to_utf8(bytes, static_cast<size_t>(length));
     }
-    return sanitize_utf8(bytes, static_cast<size_t>(length));
+    return sanitized_utf8(bytes, static_cast<size_t>(length));
   }
 
   // An int32 element count, checked so that `count` elements of at least `min_element_bytes` bytes each fit in the
@@ -392,18 +369,7 @@ class PmxParser {
     const int32_t n = in_.count("vertices", min_bytes);
     vertices_at_ = in_.offset();
     PmxVertices& v = model_.vertices;
-    v.positions.resize(n, 3);
-    v.normals.resize(n, 3);
-    v.uvs.resize(n, 2);
-    v.additional_uvs.assign(static_cast<size_t>(uv_count),
-                            Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>(n, 4));
-    v.deform.resize(static_cast<size_t>(n));
-    v.bone_indices.setConstant(n, 4, -1);
-    v.bone_weights.setZero(n, 4);
-    v.sdef_c.setZero(n, 3);
-    v.sdef_r0.setZero(n, 3);
-    v.sdef_r1.setZero(n, 3);
-    v.edge_scale.resize(n);
+    v.resize(n, uv_count);
     for (int32_t i = 0; i < n; ++i) {
       v.positions.row(i) = in_.vec3({"vertices", i, "position"}).transpose();
       v.normals.row(i) = in_.vec3({"vertices", i, "normal"}).transpose();
@@ -864,6 +830,21 @@ PmxModel pmx_to_amt_frame(const PmxModel& model, float scale) {
 
 // === Mesh and skinning
 
+void PmxVertices::resize(int n, int additional_uv_count) {
+  positions.setZero(n, 3);
+  normals.setZero(n, 3);
+  uvs.setZero(n, 2);
+  additional_uvs.assign(static_cast<size_t>(additional_uv_count),
+                        Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>::Zero(n, 4));
+  deform.assign(static_cast<size_t>(n), PmxDeform::kBdef1);
+  bone_indices.setConstant(n, 4, -1);
+  bone_weights.setZero(n, 4);
+  sdef_c.setZero(n, 3);
+  sdef_r0.setZero(n, 3);
+  sdef_r1.setZero(n, 3);
+  edge_scale.setOnes(n);
+}
+
 TriMesh pmx_mesh(const PmxModel& model) {
   TriMesh mesh;
   mesh.V = model.vertices.positions;
@@ -927,6 +908,10 @@ std::string utf16le_to_utf8(const uint8_t* bytes, size_t size) {
   }
   if (size % 2 != 0) append_utf8(kReplacementCharacter, out);
   return out;
+}
+
+std::string sanitize_utf8(const std::string& text) {
+  return sanitized_utf8(reinterpret_cast<const uint8_t*>(text.data()), text.size());
 }
 
 }  // namespace amt

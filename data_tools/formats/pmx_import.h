@@ -136,6 +136,9 @@ struct PmxVertices {
 
   /// Number of vertices #V.
   int size() const { return static_cast<int>(positions.rows()); }
+  /// Sizes every array for `n` vertices with `additional_uv_count` extra uvs: BDEF1 deforms, bone indices -1, edge
+  /// scales 1 and everything else 0 (no bones until they are set).
+  void resize(int n, int additional_uv_count);
 };
 
 /// One link of an IK chain.
@@ -311,5 +314,9 @@ SparseWeights pmx_skin_weights(const PmxModel& model);
 /// UTF-16LE bytes to UTF-8. Surrogate pairs become one 4-byte sequence; an unpaired surrogate or a trailing odd
 /// byte becomes U+FFFD.
 std::string utf16le_to_utf8(const uint8_t* bytes, size_t size);
+
+/// The text with every byte that does not start a well-formed UTF-8 sequence (RFC 3629: no overlong forms, no
+/// surrogates, nothing above U+10FFFF) replaced by U+FFFD: the reader's UTF-8 names are always valid UTF-8.
+std::string sanitize_utf8(const std::string& text);
 
 }  // namespace amt

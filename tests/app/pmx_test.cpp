@@ -9,9 +9,9 @@
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/pmx_export.h"
 #include "tests/app/amt_cli.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
-#include "tests/data_tools/formats/pmx_test_writer.h"
 
 namespace amt {
 namespace {
@@ -25,7 +25,7 @@ std::string cmu_walk() {
 TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   const fs::path dir = test::temp_dir("pmx_dataset_cli");
   fs::create_directories(dir / "models");
-  test::write_test_pmx_file(test::pmx_humanoid(), (dir / "models" / "humanoid.pmx").string());
+  write_pmx(test::pmx_humanoid(), (dir / "models" / "humanoid.pmx").string());
   const test::CommandResult built = test::expect_success(
       dir, {"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "", "--procedural", "2", "--frames",
             "12", "--threads", "1"});
@@ -59,7 +59,7 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   // A rerun naming another model in the folder's place is refused, writing nothing.
   PmxModel other = test::pmx_humanoid();
   other.rigid_bodies[2].mass = 3.0f;
-  test::write_test_pmx_file(other, (dir / "models" / "humanoid.pmx").string());
+  write_pmx(other, (dir / "models" / "humanoid.pmx").string());
   test::expect_errors_writing_nothing(
       dir, {{{"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "", "--procedural", "2", "--frames",
               "12"},
@@ -70,7 +70,7 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
 
 TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
   const fs::path dir = test::temp_dir("pmx_animate_physics");
-  test::write_test_pmx_file(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
+  write_pmx(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
   const test::CommandResult run = test::expect_success(
       dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--frames", "6",
             "--out", "walk.glb", "--threads", "1"});
@@ -91,7 +91,7 @@ TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
   // Errors: a character without a physics rig of its own, and a PMX whose bodies all follow their bones.
   PmxModel still = test::pmx_humanoid("still.pmx");
   for (PmxRigidBody& r : still.rigid_bodies) r.mode = PmxPhysicsMode::kFollowBone;
-  test::write_test_pmx_file(still, (dir / "still.pmx").string());
+  write_pmx(still, (dir / "still.pmx").string());
   test::expect_errors_writing_nothing(
       dir, {{{"animate", "--character", "generated:3", "--motion", cmu_walk(), "--apparel", "physics", "--out", "g.glb"},
              {"generated:3: --apparel physics: expected a PMX model with rigid bodies", "use --apparel learned"}},

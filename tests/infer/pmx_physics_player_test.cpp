@@ -10,8 +10,8 @@
 #include <string>
 
 #include "data_tools/geometry/motion.h"
+#include "data_tools/formats/pmx_export.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
-#include "tests/data_tools/formats/pmx_test_writer.h"
 #include "tests/test_support.h"
 
 namespace amt {
@@ -51,7 +51,7 @@ TEST(PmxPhysicsPlayer, LeadInBlendsFromTheRestPoseTowardsTheFirstFrame) {
 TEST(PmxPhysicsPlayer, FramesAreTheDatasetGroundTruth) {
   const fs::path dir = test::temp_dir("pmx_physics_player");
   const std::string path = (dir / "humanoid.pmx").string();
-  test::write_test_pmx_file(test::pmx_humanoid(), path);
+  write_pmx(test::pmx_humanoid(), path);
   PmxSimulationOptions o;
   o.settle_seconds = 0.2f;
   PmxPhysicsPlayer player(path, std::nullopt, o);
@@ -81,7 +81,7 @@ TEST(PmxPhysicsPlayer, FramesAreTheDatasetGroundTruth) {
 
 TEST(PmxPhysicsPlayer, AnimateWritesAGlbThatPassesTheValidator) {
   const fs::path dir = test::temp_dir("pmx_physics_glb");
-  test::write_test_pmx_file(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
+  write_pmx(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
   const std::string motion = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
   const test::CommandResult run = test::run_command(
       "cd '" + dir.string() + "' && " +

@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numeric>
 #include <sstream>
 #include <string>
@@ -645,6 +646,60 @@ TEST(Trainer, BadInputGivesOneClearError) {
   TrainOptions refiner = o;
   EXPECT_NE(error_of([&] { train_module(ModuleKind::kRefiner, {micro_dataset()}, refiner); }).find("--apparel: "),
             std::string::npos);
+}
+
+TEST(Trainer, OutReplacesOnlyCheckpointsAndLogsAmtWrote) {
+  test::use_one_thread();
+  const auto text_of = [](const fs::path& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const auto write_text = [](const fs::path& path, const std::string& text) { std::ofstream(path) << text; };
+  TrainOptions o = tiny_options("out_rule");
+  o.steps = 1;
+  const fs::path out = o.out_dir;
+  fs::remove_all(out);
+  fs::create_directories(out);
+  write_text(out / "notes.txt", "a user's notes");  // other files in the folder are left alone
+  const TrainResult first = train_module(ModuleKind::kSegmenter, {micro_dataset()}, o);
+  EXPECT_EQ(text_of(out / "notes.txt"), "a user's notes");
+  EXPECT_EQ(train_module(ModuleKind::kSegmenter, {micro_dataset()}, o).checkpoint, first.checkpoint);  // amt's: replaced
+
+  // A user's file under the checkpoint's or the log's name, another module's checkpoint, a folder: refused, untouched.
+  const fs::path checkpoint = out / "segmenter.ckpt", log = out / "segmenter.csv";
+  fs::copy_file(out / "segmenter.ckpt", out / "other.ckpt");
+  TrainOptions apparel = o;
+  apparel.out_dir = (test_dir() / "out_rule_apparel").string();
+  fs::remove_all(apparel.out_dir);
+  fs::create_directories(apparel.out_dir);
+  fs::copy_file(checkpoint, fs::path(apparel.out_dir) / "apparel.ckpt");
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kApparel, {micro_dataset()}, apparel); }),
+            apparel.out_dir + "/apparel.ckpt: --out: this run writes its apparel checkpoint there, and the file is not "
+                              "one amt wrote for that module (kind: expected 'apparel', found 'segmenter'): refusing "
+                              "to replace it (name another --out)");
+  write_text(checkpoint, "my thesis");
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kSegmenter, {micro_dataset()}, o); })
+                .rfind(checkpoint.string() + ": --out: this run writes its segmenter checkpoint there, and the file is "
+                                             "not one amt wrote for that module (not an amt checkpoint (",
+                       0),
+            0u);
+  EXPECT_EQ(text_of(checkpoint), "my thesis");
+  fs::copy_file(out / "other.ckpt", checkpoint, fs::copy_options::overwrite_existing);
+  write_text(log, "date,temperature\n");
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kSegmenter, {micro_dataset()}, o); }),
+            log.string() + ": --out: this run writes its training log there, and the file is not a training log amt "
+                           "wrote (its first line is not 'step,loss,...'): refusing to replace it (name another --out)");
+  EXPECT_EQ(text_of(log), "date,temperature\n");
+  fs::remove(log);
+  fs::create_directory(log);
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kSegmenter, {micro_dataset()}, o); }),
+            log.string() + ": --out: this run writes a .csv file of that name, found a folder: refusing to replace "
+                           "it (name another --out)");
+  TrainOptions file_out = o;
+  file_out.out_dir = (out / "notes.txt").string();
+  EXPECT_EQ(error_of([&] { train_module(ModuleKind::kSegmenter, {micro_dataset()}, file_out); }),
+            file_out.out_dir + ": --out: expected a folder (new or amt's), found a file: name a new folder");
+  EXPECT_EQ(text_of(out / "notes.txt"), "a user's notes");
 }
 
 TEST(TrainCommand, TrainsAndResumesFromTheCommandLine) {

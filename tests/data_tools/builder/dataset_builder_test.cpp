@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/pmx_export.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/data_tools/builder/tiny_build.h"
-#include "tests/data_tools/formats/pmx_test_writer.h"
 #include "tests/test_support.h"
 
 namespace amt {
@@ -332,7 +332,7 @@ TEST(DatasetBuildCommand, DefaultMotionsAreFoundAboveTheProgramOrInTheCurrentFol
 TEST(DatasetBuilderPmx, MixedWithProceduralCharactersResumesToTheSameBytes) {
   const fs::path root = test::temp_dir("dataset_builder_pmx");
   const std::string model = (root / "humanoid.pmx").string();
-  test::write_test_pmx_file(test::pmx_humanoid(), model);
+  write_pmx(test::pmx_humanoid(), model);
   DatasetBuildOptions o = tiny_build_options(root / "reference", 1);
   o.pmx = {model};
   const DatasetBuildReport reference = build_dataset(o);

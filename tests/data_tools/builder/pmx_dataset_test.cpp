@@ -16,8 +16,8 @@
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/motion.h"
+#include "data_tools/formats/pmx_export.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
-#include "tests/data_tools/formats/pmx_test_writer.h"
 #include "tests/test_support.h"
 
 namespace amt {
@@ -143,8 +143,8 @@ TEST(PmxDataset, WhatCannotBeRepairedIsAOneLineError) {
   // A NaN size never reaches the repairs: the reader refuses it, naming the file and the field.
   PmxModel nan = test::pmx_humanoid("nan.pmx");
   nan.rigid_bodies[2].size.x() = std::numeric_limits<float>::quiet_NaN();
-  const test::Written w = test::write_test_pmx(nan);
-  const std::string read = test::error_of([&] { parse_pmx(w.bytes.data(), w.bytes.size(), "nan.pmx"); });
+  const std::vector<uint8_t> bytes = pmx_to_bytes(nan);
+  const std::string read = test::error_of([&] { parse_pmx(bytes.data(), bytes.size(), "nan.pmx"); });
   EXPECT_NE(read.find("nan.pmx"), std::string::npos) << read;
   EXPECT_NE(read.find("size"), std::string::npos) << read;
   EXPECT_EQ(read.find('\n'), std::string::npos);
@@ -236,7 +236,7 @@ TEST(PmxDataset, BodyIsExactAndHairIsSimulated) {
 TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
   const std::filesystem::path dir = test::temp_dir("pmx_dataset_build");
   const std::string model = (dir / "humanoid.pmx").string();
-  test::write_test_pmx_file(test::pmx_humanoid(), model);
+  write_pmx(test::pmx_humanoid(), model);
   DatasetBuildOptions o;
   o.out = (dir / "ds").string();
   o.characters = 0;
@@ -261,7 +261,7 @@ TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
   EXPECT_EQ(build_dataset(o).characters_skipped, 1);
   PmxModel edited = test::pmx_humanoid();
   edited.rigid_bodies[2].mass = 2.0f;
-  test::write_test_pmx_file(edited, model);
+  write_pmx(edited, model);
   const std::string message = test::error_of([&] { build_dataset(o); });
   EXPECT_NE(message.find("pmx_files.0.fnv1a64"), std::string::npos) << message;
 }

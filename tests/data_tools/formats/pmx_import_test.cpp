@@ -1,7 +1,8 @@
 // PMX reader: the four babylon-mmd fixtures against values read off their hex dumps at fixed byte offsets; round
-// trips of every field through an independent writer (both encodings, index sizes 1, 2 and 4, every deform type,
-// PMX 2.0 and 2.1); every malformed input we could think of, including every truncation of a valid file; and the
-// conversion to amt's frame.
+// trips of every field through the writer (data_tools/formats/pmx_export.h; both encodings, index sizes 1, 2 and 4,
+// every deform type, PMX 2.0 and 2.1, with sections of every kind the writer does not model spliced in); every
+// malformed input we could think of, including every truncation of a valid file; and the conversion to amt's
+// frame.
 #include "data_tools/formats/pmx_import.h"
 
 #include <gtest/gtest.h>
@@ -15,12 +16,17 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/formats/pmx_export.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/mesh.h"
-#include "tests/data_tools/formats/pmx_test_writer.h"
+#include "tests/data_tools/formats/pmx_test_models.h"
 
 namespace amt {
 namespace {
+
+using test::bone;
+using test::expect_same_model;
+using test::sample_model;
 
 constexpr float kPi = 3.14159265358979f;
 
@@ -352,331 +358,201 @@ TEST(PmxConversion, EulerMapIsConjugationByTheMirror) {
   }
 }
 
-// === An independent PMX writer
+// === Files from the product writer (data_tools/formats/pmx_export.h), plus the sections it does not model
 
-using test::WriteOptions;
-using test::Written;
-using test::utf16le;
+struct WriteOptions {
+  float version = 2.0f;
+  PmxTextEncoding encoding = PmxTextEncoding::kUtf16Le;
+  int vertex_index_size = 2;
+  int index_size = 2;            // texture, material, bone, morph and rigid body indices
+  int extra_globals = 0;         // globals past the first 8 (PMX 2.1)
+  bool skipped_sections = true;  // textures, materials, morphs, display frames (and 2.1 soft bodies) of every kind
+};
 
-Written write_pmx(const PmxModel& m, const WriteOptions& o) {
-  return test::write_test_pmx(m, o);
-}
+// Bytes of a PMX file and the offset of each field the writer marks ("bones[3].parent").
+struct Written {
+  std::vector<uint8_t> bytes;
+  PmxFieldOffsets offsets;
+  int texture_count = 0, material_count = 0, morph_count = 0, display_frame_count = 0, soft_body_count = 0;
+};
 
-// === A sample model exercising every field
-
-// Flag booleans from the raw bits, decoded here independently of the reader.
-void set_flag_booleans(PmxBone& b) {
-  const uint16_t f = b.flags;
-  b.tail_is_bone = f & 0x0001;
-  b.rotatable = f & 0x0002;
-  b.translatable = f & 0x0004;
-  b.visible = f & 0x0008;
-  b.enabled = f & 0x0010;
-  b.is_ik = f & 0x0020;
-  b.inherit_local = f & 0x0080;
-  b.inherit_rotation = f & 0x0100;
-  b.inherit_translation = f & 0x0200;
-  b.has_fixed_axis = f & 0x0400;
-  b.has_local_axes = f & 0x0800;
-  b.physics_after_deform = f & 0x1000;
-  b.has_external_parent = f & 0x2000;
-}
-
-PmxBone bone(const std::string& name, const std::string& english, Eigen::Vector3f position, int32_t parent,
-             uint16_t flags) {
-  PmxBone b;
-  b.name = name;
-  b.name_english = english;
-  b.position = position;
-  b.parent = parent;
-  b.flags = flags;
-  set_flag_booleans(b);
-  return b;
-}
-
-// Six vertices (BDEF1, BDEF2, BDEF4, SDEF, unnormalised BDEF4, and QDEF in 2.1 or a BDEF2 with a repeated bone in
-// 2.0), four faces, five bones (IK, inheritance, fixed and local axes, external parent, tails by index and offset),
-// three rigid bodies (sphere, box, capsule) and two joints. `extra_vertices` BDEF1 vertices are appended.
-PmxModel sample_model(bool v21, int extra_vertices = 0) {
-  PmxModel m;
-  m.source = "model.pmx";
-  m.header.version = v21 ? 2.1f : 2.0f;
-  m.header.name = "テストモデル";
-  m.header.name_english = "test model";
-  m.header.comment = "コメント 😀 (MIT)";  // U+1F600: a surrogate pair in UTF-16
-  m.header.comment_english = "comment";
-  m.header.additional_uv_count = 1;
-
-  const int n = 6 + extra_vertices;
-  PmxVertices& v = m.vertices;
-  v.positions.resize(n, 3);
-  v.normals.resize(n, 3);
-  v.uvs.resize(n, 2);
-  v.additional_uvs.assign(1, Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor>(n, 4));
-  v.deform.assign(static_cast<size_t>(n), PmxDeform::kBdef1);
-  v.bone_indices.setConstant(n, 4, -1);
-  v.bone_weights.setZero(n, 4);
-  v.sdef_c.setZero(n, 3);
-  v.sdef_r0.setZero(n, 3);
-  v.sdef_r1.setZero(n, 3);
-  v.edge_scale.resize(n);
-  for (int i = 0; i < n; ++i) {
-    // The extra vertices repeat every 1000 so that 40000 of them stay within the importers'
-    // plausibility bound (data_tools/geometry/mesh.h).
-    const float t = static_cast<float>(i % 1000);
-    v.positions.row(i) << 0.1f * t - 0.3f, 10 + 0.5f * t, 0.2f * t - 0.7f;
-    v.normals.row(i) = Eigen::RowVector3f(0.3f, 0.4f, t - 2.5f).normalized();
-    v.uvs.row(i) << 0.1f * t, 1 - 0.05f * t;
-    v.additional_uvs[0].row(i) << t, 2 * t, -t, 0.5f;
-    v.bone_indices(i, 0) = 0;
-    v.bone_weights(i, 0) = 1;
-    v.edge_scale[i] = 1 + 0.125f * t;
+// Replaces bytes [begin, end) of `w` with `section`, whose fields `marks` are relative to its start: the offsets
+// inside the old bytes are dropped, one at `begin` stays there (unless nothing is replaced: an insertion moves it),
+// and those after them move.
+void splice(Written& w, size_t begin, size_t end, const std::vector<uint8_t>& section, const PmxFieldOffsets& marks) {
+  const int64_t delta = static_cast<int64_t>(section.size()) - static_cast<int64_t>(end - begin);
+  for (auto it = w.offsets.begin(); it != w.offsets.end();) {
+    const size_t at = it->second;
+    if (at > begin && at < end) {
+      it = w.offsets.erase(it);
+      continue;
+    }
+    if (at >= end && !(at == begin && begin < end)) it->second = static_cast<size_t>(static_cast<int64_t>(at) + delta);
+    ++it;
   }
-  v.deform[1] = PmxDeform::kBdef2;
-  v.bone_indices.row(1) << 1, 2, -1, -1;
-  v.bone_weights.row(1) << 0.25f, 0.75f, 0, 0;
-  v.deform[2] = PmxDeform::kBdef4;
-  v.bone_indices.row(2) << 0, 1, 2, -1;
-  v.bone_weights.row(2) << 0.5f, 0.3f, 0.2f, 0;
-  v.deform[3] = PmxDeform::kSdef;
-  v.bone_indices.row(3) << 2, 3, -1, -1;
-  v.bone_weights.row(3) << 0.6f, 1 - 0.6f, 0, 0;
-  v.sdef_c.row(3) << 0.1f, 11.5f, -0.2f;
-  v.sdef_r0.row(3) << 0.2f, 11.4f, -0.1f;
-  v.sdef_r1.row(3) << 0.0f, 11.6f, -0.3f;
-  v.deform[4] = PmxDeform::kBdef4;
-  v.bone_indices.row(4) << 3, 4, 0, 0;
-  v.bone_weights.row(4) << 2, 2, 0, 0;
-  if (v21) {
-    v.deform[5] = PmxDeform::kQdef;
-    v.bone_indices.row(5) << 1, 2, 3, 4;
-    v.bone_weights.row(5) << 0.1f, 0.2f, 0.3f, 0.4f;
-  } else {
-    v.deform[5] = PmxDeform::kBdef2;
-    v.bone_indices.row(5) << 3, 3, -1, -1;
-    v.bone_weights.row(5) << 0.4f, 1 - 0.4f, 0, 0;
-  }
-  m.faces.resize(4 + extra_vertices / 3, 3);
-  m.faces.topRows<4>() << 0, 1, 2, 2, 3, 4, 3, 4, 5, 5, 0, 1;
-  for (int f = 4; f < m.faces.rows(); ++f) m.faces.row(f) << n - 3 * (f - 3), n - 3 * (f - 3) + 1, n - 3 * (f - 3) + 2;
-
-  m.bones.push_back(bone("センター", "center", {0, 8, 0}, -1, 0x001E));
-  m.bones.back().tail_offset = {0, 1, 0};
-  m.bones.push_back(bone("上半身", "upper body", {0, 10, 0.5f}, 0, 0x001B));
-  m.bones.back().tail_bone = 2;
-  m.bones.back().layer = 1;
-  m.bones.push_back(bone("左腕", "left arm", {1, 12, 0.25f}, 1, 0x0D1A));
-  m.bones.back().tail_offset = {1, -0.5f, 0};
-  m.bones.back().inherit_parent = 1;
-  m.bones.back().inherit_weight = -0.5f;
-  m.bones.back().fixed_axis = {0.6f, 0, -0.8f};
-  m.bones.back().local_axis_x = {1, 0, 0};
-  m.bones.back().local_axis_z = {0, 0.6f, 0.8f};
-  m.bones.push_back(bone("左ひじ", "left elbow", {2, 11, 0.25f}, 2, 0x329B));
-  m.bones.back().tail_bone = 4;  // a tail may point past the bone itself
-  m.bones.back().inherit_parent = -1;
-  m.bones.back().inherit_weight = 1;
-  m.bones.back().external_parent_key = 7;
-  m.bones.push_back(bone("左腕ＩＫ", "left arm IK", {3, 10, 0.25f}, 0, 0x003E));
-  m.bones.back().tail_offset = {0, 0, 1};
-  m.bones.back().layer = 2;
-  m.bones.back().ik.target = 3;
-  m.bones.back().ik.loop_count = 40;
-  m.bones.back().ik.limit_angle = 0.5f;
-  PmxIkLink link;
-  link.bone = 2;
-  link.has_limits = true;
-  link.limit_min = {-1, -0.5f, 0};
-  link.limit_max = {0.2f, 0.5f, 1};
-  m.bones.back().ik.links.push_back(link);
-  link = PmxIkLink();
-  link.bone = 1;
-  m.bones.back().ik.links.push_back(link);
-
-  PmxRigidBody r;
-  r.name = "頭";
-  r.name_english = "head";
-  r.bone = 0;
-  r.group = 0;
-  r.collision_mask = 0xFFFE;
-  r.shape = PmxShape::kSphere;
-  r.size = {0.9f, 0, 0};
-  r.position = {0, 14, 0.1f};
-  r.rotation = {0, 0, 0};
-  r.mass = 0;
-  r.linear_damping = 0.9f;
-  r.angular_damping = 0.95f;
-  r.restitution = 0;
-  r.friction = 0.5f;
-  r.mode = PmxPhysicsMode::kFollowBone;
-  m.rigid_bodies.push_back(r);
-  r.name = "スカート前";
-  r.name_english = "skirt front";
-  r.bone = 2;
-  r.group = 5;
-  r.collision_mask = 0xFFDF;
-  r.shape = PmxShape::kBox;
-  r.size = {0.5f, 0.25f, 0.1f};
-  r.position = {0.5f, 9, -1};
-  r.rotation = {0.1f, 0.2f, -0.3f};
-  r.mass = 0.25f;
-  r.mode = PmxPhysicsMode::kDynamic;
-  m.rigid_bodies.push_back(r);
-  r.name = "髪";
-  r.name_english = "";
-  r.bone = -1;
-  r.group = 15;
-  r.collision_mask = 0x7FFF;
-  r.shape = PmxShape::kCapsule;
-  r.size = {0.2f, 1.5f, 0};
-  r.position = {-0.5f, 13, 1};
-  r.rotation = {-kPi / 2, 0, 0.25f};
-  r.mass = 1.5f;
-  r.restitution = 0.125f;
-  r.mode = PmxPhysicsMode::kDynamicWithBonePosition;
-  m.rigid_bodies.push_back(r);
-
-  PmxJoint j;
-  j.name = "スカート接続";
-  j.name_english = "skirt joint";
-  j.type = PmxJointType::kSpring6Dof;
-  j.rigid_body_a = 0;
-  j.rigid_body_b = 1;
-  j.position = {0.5f, 9.5f, -0.8f};
-  j.rotation = {0.05f, -0.1f, 0.15f};
-  j.linear_min = {-0.1f, -0.2f, -0.3f};
-  j.linear_max = {0.1f, 0.2f, 0.4f};
-  j.angular_min = {-0.5f, -0.25f, -0.125f};
-  j.angular_max = {0.75f, 0.5f, 0.25f};
-  j.spring_linear = {10, 20, 30};
-  j.spring_angular = {100, 200, 300};
-  m.joints.push_back(j);
-  j.name = "髪接続";
-  j.name_english = "";
-  j.type = v21 ? PmxJointType::kHinge : PmxJointType::kSpring6Dof;
-  j.rigid_body_a = 1;
-  j.rigid_body_b = 2;
-  m.joints.push_back(j);
-  return m;
+  w.bytes.erase(w.bytes.begin() + static_cast<std::ptrdiff_t>(begin), w.bytes.begin() + static_cast<std::ptrdiff_t>(end));
+  w.bytes.insert(w.bytes.begin() + static_cast<std::ptrdiff_t>(begin), section.begin(), section.end());
+  for (const auto& [field, at] : marks) w.offsets[field] = begin + at;
 }
 
-void expect_same_model(const PmxModel& e, const PmxModel& a) {
-  EXPECT_EQ(a.frame, PmxFrame::kMmd);
-  EXPECT_EQ(a.header.version, e.header.version);
-  EXPECT_EQ(a.header.additional_uv_count, e.header.additional_uv_count);
-  EXPECT_EQ(a.header.name, e.header.name);
-  EXPECT_EQ(a.header.name_english, e.header.name_english);
-  EXPECT_EQ(a.header.comment, e.header.comment);
-  EXPECT_EQ(a.header.comment_english, e.header.comment_english);
+// Two textures and two materials, one of each toon kind.
+std::vector<uint8_t> textures_and_materials(const PmxModel& m, int index_size, PmxFieldOffsets& marks) {
+  PmxEncoder e(m.header);
+  e.i32(2);
+  e.text("tex/body.png");
+  e.text("toon/肌.bmp");
+  marks["materials"] = e.bytes.size();
+  e.i32(2);
+  for (int i = 0; i < 2; ++i) {
+    e.text(i == 0 ? "肌" : "スカート");
+    e.text(i == 0 ? "skin" : "skirt");
+    for (int k = 0; k < 4 + 3 + 1 + 3; ++k) e.f32(0.25f * k);  // diffuse, specular, strength, ambient
+    e.u8(0x1F);                                                 // flags
+    for (int k = 0; k < 4 + 1; ++k) e.f32(1);                   // edge colour, edge size
+    e.index(0, index_size, "texture");
+    e.index(-1, index_size, "sphere texture");
+    e.u8(1);                                                    // sphere mode
+    e.u8(static_cast<uint8_t>(i));                              // toon: 0 texture index, 1 shared toon byte
+    if (i == 0) {
+      e.index(1, index_size, "toon");
+    } else {
+      e.u8(3);
+    }
+    e.text("memo");
+    e.i32(static_cast<int32_t>(i == 0 ? 3 : 3 * (m.faces.rows() - 1)));
+  }
+  return e.bytes;
+}
 
-  const PmxVertices& ev = e.vertices;
-  const PmxVertices& av = a.vertices;
-  ASSERT_EQ(av.size(), ev.size());
-  EXPECT_EQ(av.positions, ev.positions);
-  EXPECT_EQ(av.normals, ev.normals);
-  EXPECT_EQ(av.uvs, ev.uvs);
-  ASSERT_EQ(av.additional_uvs.size(), ev.additional_uvs.size());
-  for (size_t k = 0; k < ev.additional_uvs.size(); ++k) EXPECT_EQ(av.additional_uvs[k], ev.additional_uvs[k]);
-  EXPECT_EQ(av.deform, ev.deform);
-  EXPECT_EQ(av.bone_indices, ev.bone_indices);
-  EXPECT_EQ(av.bone_weights, ev.bone_weights);
-  EXPECT_EQ(av.sdef_c, ev.sdef_c);
-  EXPECT_EQ(av.sdef_r0, ev.sdef_r0);
-  EXPECT_EQ(av.sdef_r1, ev.sdef_r1);
-  EXPECT_EQ(av.edge_scale, ev.edge_scale);
-  EXPECT_EQ(a.faces, e.faces);
-
-  ASSERT_EQ(a.bones.size(), e.bones.size());
-  for (size_t i = 0; i < e.bones.size(); ++i) {
-    SCOPED_TRACE("bone " + std::to_string(i));
-    const PmxBone& eb = e.bones[i];
-    const PmxBone& ab = a.bones[i];
-    EXPECT_EQ(ab.name, eb.name);
-    EXPECT_EQ(ab.name_english, eb.name_english);
-    EXPECT_EQ(ab.position, eb.position);
-    EXPECT_EQ(ab.parent, eb.parent);
-    EXPECT_EQ(ab.layer, eb.layer);
-    EXPECT_EQ(ab.flags, eb.flags);
-    const bool PmxBone::*flags[] = {&PmxBone::tail_is_bone,
-                                    &PmxBone::rotatable,
-                                    &PmxBone::translatable,
-                                    &PmxBone::visible,
-                                    &PmxBone::enabled,
-                                    &PmxBone::is_ik,
-                                    &PmxBone::inherit_local,
-                                    &PmxBone::inherit_rotation,
-                                    &PmxBone::inherit_translation,
-                                    &PmxBone::has_fixed_axis,
-                                    &PmxBone::has_local_axes,
-                                    &PmxBone::physics_after_deform,
-                                    &PmxBone::has_external_parent};
-    for (size_t k = 0; k < std::size(flags); ++k) EXPECT_EQ(ab.*flags[k], eb.*flags[k]) << "flag " << k;
-    EXPECT_EQ(ab.tail_bone, eb.tail_bone);
-    EXPECT_EQ(ab.tail_offset, eb.tail_offset);
-    EXPECT_EQ(ab.inherit_parent, eb.inherit_parent);
-    EXPECT_EQ(ab.inherit_weight, eb.inherit_weight);
-    EXPECT_EQ(ab.fixed_axis, eb.fixed_axis);
-    EXPECT_EQ(ab.local_axis_x, eb.local_axis_x);
-    EXPECT_EQ(ab.local_axis_z, eb.local_axis_z);
-    EXPECT_EQ(ab.external_parent_key, eb.external_parent_key);
-    EXPECT_EQ(ab.ik.target, eb.ik.target);
-    EXPECT_EQ(ab.ik.loop_count, eb.ik.loop_count);
-    EXPECT_EQ(ab.ik.limit_angle, eb.ik.limit_angle);
-    ASSERT_EQ(ab.ik.links.size(), eb.ik.links.size());
-    for (size_t k = 0; k < eb.ik.links.size(); ++k) {
-      EXPECT_EQ(ab.ik.links[k].bone, eb.ik.links[k].bone);
-      EXPECT_EQ(ab.ik.links[k].has_limits, eb.ik.links[k].has_limits);
-      EXPECT_EQ(ab.ik.links[k].limit_min, eb.ik.links[k].limit_min);
-      EXPECT_EQ(ab.ik.links[k].limit_max, eb.ik.links[k].limit_max);
+// Two offsets of each morph type of the version, and two display frames.
+std::vector<uint8_t> morphs_and_display_frames(const PmxModel& m, int index_size, bool v21, PmxFieldOffsets& marks) {
+  PmxEncoder e(m.header);
+  const int types = v21 ? 11 : 9;
+  e.i32(types);
+  for (int t = 0; t < types; ++t) {
+    e.text("モーフ" + std::to_string(t));
+    e.text("morph " + std::to_string(t));
+    e.u8(static_cast<uint8_t>(t % 5));  // panel
+    e.u8(static_cast<uint8_t>(t));      // type
+    e.i32(2);                           // offsets
+    for (int k = 0; k < 2; ++k) {
+      switch (t) {
+        case 0:  // group
+        case 9:  // flip
+          e.index(0, index_size, "morph");
+          e.f32(0.5f);
+          break;
+        case 1:  // vertex
+          e.vertex_index(1, "vertex");
+          e.vec3(Eigen::Vector3f(0.1f, 0.2f, 0.3f));
+          break;
+        case 2:  // bone
+          e.index(1, index_size, "bone");
+          e.vec3(Eigen::Vector3f(0, 1, 0));
+          for (int c = 0; c < 4; ++c) e.f32(c == 3 ? 1.0f : 0.0f);
+          break;
+        case 8:  // material
+          e.index(-1, index_size, "material");
+          e.u8(1);
+          for (int c = 0; c < 28; ++c) e.f32(1);
+          break;
+        case 10:  // impulse
+          e.index(0, index_size, "rigid body");
+          e.u8(1);
+          e.vec3(Eigen::Vector3f(1, 2, 3));
+          e.vec3(Eigen::Vector3f(4, 5, 6));
+          break;
+        default:  // uv and additional uv
+          e.vertex_index(2, "vertex");
+          for (int c = 0; c < 4; ++c) e.f32(0.125f);
+      }
     }
   }
-
-  ASSERT_EQ(a.rigid_bodies.size(), e.rigid_bodies.size());
-  for (size_t i = 0; i < e.rigid_bodies.size(); ++i) {
-    SCOPED_TRACE("rigid body " + std::to_string(i));
-    const PmxRigidBody& er = e.rigid_bodies[i];
-    const PmxRigidBody& ar = a.rigid_bodies[i];
-    EXPECT_EQ(ar.name, er.name);
-    EXPECT_EQ(ar.name_english, er.name_english);
-    EXPECT_EQ(ar.bone, er.bone);
-    EXPECT_EQ(ar.group, er.group);
-    EXPECT_EQ(ar.collision_mask, er.collision_mask);
-    EXPECT_EQ(ar.shape, er.shape);
-    EXPECT_EQ(ar.size, er.size);
-    EXPECT_EQ(ar.position, er.position);
-    EXPECT_EQ(ar.rotation, er.rotation);
-    EXPECT_EQ(ar.mass, er.mass);
-    EXPECT_EQ(ar.linear_damping, er.linear_damping);
-    EXPECT_EQ(ar.angular_damping, er.angular_damping);
-    EXPECT_EQ(ar.restitution, er.restitution);
-    EXPECT_EQ(ar.friction, er.friction);
-    EXPECT_EQ(ar.mode, er.mode);
+  marks["display_frames"] = e.bytes.size();
+  e.i32(2);
+  for (int i = 0; i < 2; ++i) {
+    e.text(i == 0 ? "Root" : "表情");
+    e.text(i == 0 ? "Root" : "Exp");
+    e.u8(1);
+    e.i32(2);
+    e.u8(0);  // bone element
+    e.index(static_cast<int32_t>(m.bones.size()) - 1, index_size, "bone");
+    e.u8(1);  // morph element
+    e.index(0, index_size, "morph");
   }
+  return e.bytes;
+}
 
-  ASSERT_EQ(a.joints.size(), e.joints.size());
-  for (size_t i = 0; i < e.joints.size(); ++i) {
-    SCOPED_TRACE("joint " + std::to_string(i));
-    const PmxJoint& ej = e.joints[i];
-    const PmxJoint& aj = a.joints[i];
-    EXPECT_EQ(aj.name, ej.name);
-    EXPECT_EQ(aj.name_english, ej.name_english);
-    EXPECT_EQ(aj.type, ej.type);
-    EXPECT_EQ(aj.rigid_body_a, ej.rigid_body_a);
-    EXPECT_EQ(aj.rigid_body_b, ej.rigid_body_b);
-    EXPECT_EQ(aj.position, ej.position);
-    EXPECT_EQ(aj.rotation, ej.rotation);
-    EXPECT_EQ(aj.linear_min, ej.linear_min);
-    EXPECT_EQ(aj.linear_max, ej.linear_max);
-    EXPECT_EQ(aj.angular_min, ej.angular_min);
-    EXPECT_EQ(aj.angular_max, ej.angular_max);
-    EXPECT_EQ(aj.spring_linear, ej.spring_linear);
-    EXPECT_EQ(aj.spring_angular, ej.spring_angular);
+// One soft body with two anchors and three pins (PMX 2.1).
+std::vector<uint8_t> soft_bodies(const PmxModel& m, int index_size) {
+  PmxEncoder e(m.header);
+  e.i32(1);
+  e.text("スカート布");
+  e.text("skirt cloth");
+  e.u8(0);                                           // shape: triangle mesh
+  e.index(1, index_size, "material");                // material
+  e.u8(2);                                           // group
+  e.u16(0xFFFB);                                     // mask
+  e.u8(0x03);                                        // flags
+  e.i32(2);                                          // B-link distance
+  e.i32(4);                                          // clusters
+  e.f32(1.5f);                                       // total mass
+  e.f32(0.05f);                                      // margin
+  e.i32(1);                                          // aerodynamics model
+  for (int k = 0; k < 12 + 6; ++k) e.f32(0.1f * k);  // config, cluster
+  for (int k = 0; k < 4; ++k) e.i32(k + 1);          // iterations
+  for (int k = 0; k < 3; ++k) e.f32(1);              // material
+  e.i32(2);                                          // anchors
+  for (int k = 0; k < 2; ++k) {
+    e.index(k, index_size, "rigid body");
+    e.vertex_index(k, "vertex");
+    e.u8(static_cast<uint8_t>(k));
   }
+  e.i32(3);  // pins
+  for (int k = 0; k < 3; ++k) e.vertex_index(k, "vertex");
+  return e.bytes;
+}
+
+// The model written by pmx_to_bytes with the options' header; with `skipped_sections` its textures, material,
+// morphs and display frames are replaced by ones of every kind (and 2.1 soft bodies are added), with
+// `extra_globals` unknown globals are inserted; a 2.1 file without skipped sections ends after the joints.
+Written write_with(PmxModel m, const WriteOptions& o) {
+  const bool v21 = o.version > 2.05f;
+  m.header.version = o.version;
+  m.header.encoding = o.encoding;
+  m.header.vertex_index_size = o.vertex_index_size;
+  m.header.texture_index_size = m.header.material_index_size = m.header.bone_index_size =
+      m.header.morph_index_size = m.header.rigid_body_index_size = o.index_size;
+  Written w;
+  w.bytes = pmx_to_bytes(m, &w.offsets);
+  w.material_count = 1;  // the writer's one material and two display frames
+  w.display_frame_count = 2;
+  if (v21) {  // drop the writer's empty soft body section, or replace it
+    PmxFieldOffsets none;
+    splice(w, w.offsets.at("soft_bodies"), w.bytes.size(),
+           o.skipped_sections ? soft_bodies(m, o.index_size) : std::vector<uint8_t>(), none);
+    w.soft_body_count = o.skipped_sections ? 1 : 0;
+  }
+  if (o.skipped_sections) {
+    PmxFieldOffsets marks{{"morphs", 0}};
+    splice(w, w.offsets.at("morphs"), w.offsets.at("rigid_bodies"),
+           morphs_and_display_frames(m, o.index_size, v21, marks), marks);
+    marks = {{"textures", 0}};
+    splice(w, w.offsets.at("textures"), w.offsets.at("bones"), textures_and_materials(m, o.index_size, marks), marks);
+    w.texture_count = 2;
+    w.material_count = 2;
+    w.morph_count = v21 ? 11 : 9;
+  }
+  if (o.extra_globals > 0) {
+    w.bytes[8] = static_cast<uint8_t>(8 + o.extra_globals);
+    splice(w, 17, 17, std::vector<uint8_t>(static_cast<size_t>(o.extra_globals), 0x5A), {});
+  }
+  return w;
 }
 
 void expect_round_trip(bool v21, const WriteOptions& o) {
   const PmxModel expected = sample_model(v21);
-  const Written w = write_pmx(expected, o);
+  const Written w = write_with(expected, o);
   const PmxModel m = parse(w.bytes);
   EXPECT_EQ(m.source, "model.pmx");
   EXPECT_EQ(m.header.encoding, o.encoding);
@@ -742,7 +618,7 @@ TEST(PmxRoundTrip, Version21EndingAfterTheJointsHasNoSoftBodies) {
   WriteOptions o;
   o.version = 2.1f;
   o.skipped_sections = false;
-  const Written w = write_pmx(sample_model(true), o);
+  const Written w = write_with(sample_model(true), o);
   EXPECT_EQ(w.offsets.at("end_of_joints"), w.bytes.size());
   const PmxModel m = parse(w.bytes);
   EXPECT_EQ(m.header.version, 2.1f);
@@ -755,7 +631,7 @@ TEST(PmxRoundTrip, JapaneseNamesComeOutAsUtf8InBothEncodings) {
   for (PmxTextEncoding encoding : {PmxTextEncoding::kUtf16Le, PmxTextEncoding::kUtf8}) {
     WriteOptions o;
     o.encoding = encoding;
-    const PmxModel m = parse(write_pmx(sample_model(false), o).bytes);
+    const PmxModel m = parse(write_with(sample_model(false), o).bytes);
     EXPECT_EQ(m.bones[2].name, "\xE5\xB7\xA6\xE8\x85\x95");  // 左腕: U+5DE6 U+8155
     EXPECT_EQ(m.header.comment, "\xE3\x82\xB3\xE3\x83\xA1\xE3\x83\xB3\xE3\x83\x88 \xF0\x9F\x98\x80 (MIT)");
     EXPECT_EQ(m.bones[4].name, "左腕ＩＫ");
@@ -772,7 +648,7 @@ TEST(PmxRoundTrip, UnsignedOneAndTwoByteVertexIndices) {
     o.vertex_index_size = size;
     o.index_size = 1;
     o.skipped_sections = false;
-    const PmxModel m = parse(write_pmx(expected, o).bytes);
+    const PmxModel m = parse(write_with(expected, o).bytes);
     ASSERT_EQ(m.vertices.size(), 6 + extra);
     EXPECT_EQ(m.faces.bottomRows<1>(), expected.faces.bottomRows<1>());
     EXPECT_EQ(m.faces.maxCoeff(), 5 + extra);
@@ -781,7 +657,7 @@ TEST(PmxRoundTrip, UnsignedOneAndTwoByteVertexIndices) {
 }
 
 TEST(PmxRoundTrip, FlagsDecodeToBooleans) {
-  const PmxModel m = parse(write_pmx(sample_model(false), WriteOptions()).bytes);
+  const PmxModel m = parse(write_with(sample_model(false), WriteOptions()).bytes);
   const PmxBone& arm = m.bones[2];  // 0x0D1A
   EXPECT_TRUE(arm.rotatable && arm.visible && arm.enabled && arm.inherit_rotation && arm.has_fixed_axis &&
               arm.has_local_axes);
@@ -803,7 +679,7 @@ TEST(PmxSkinning, AllDeformTypesBecomeNormalisedSparseWeights) {
     SCOPED_TRACE(v21);
     WriteOptions o;
     o.version = v21 ? 2.1f : 2.0f;
-    const PmxModel m = parse(write_pmx(sample_model(v21), o).bytes);
+    const PmxModel m = parse(write_with(sample_model(v21), o).bytes);
     const SparseWeights w = pmx_skin_weights(m);
     ASSERT_EQ(w.num_vertices(), 6);
     const auto expect_row = [&w](int i, Eigen::RowVector4i indices, Eigen::RowVector4f weights) {
@@ -828,7 +704,7 @@ TEST(PmxSkinning, NegativeAndZeroWeightsFallBackToTheFirstBone) {
   PmxModel m = sample_model(false);
   m.vertices.bone_weights.row(2) << -1, 0, 0, 0;  // no positive weight
   m.vertices.bone_weights.row(4) << -2, 3, 0, 0;  // the negative weight counts as 0
-  const SparseWeights w = pmx_skin_weights(parse(write_pmx(m, WriteOptions()).bytes));
+  const SparseWeights w = pmx_skin_weights(parse(write_with(m, WriteOptions()).bytes));
   EXPECT_EQ(w.indices.row(2), Eigen::RowVector4i(0, 0, 0, 0));
   EXPECT_EQ(w.weights.row(2), Eigen::RowVector4f(1, 0, 0, 0));
   EXPECT_EQ(w.indices(4, 0), 4);
@@ -849,13 +725,13 @@ TEST(PmxSkinning, VerticesWithoutBonesAreAnError) {
   m.rigid_bodies[1].bone = -1;
   WriteOptions o;
   o.skipped_sections = false;
-  const PmxModel parsed = parse(write_pmx(m, o).bytes);
+  const PmxModel parsed = parse(write_with(m, o).bytes);
   EXPECT_EQ(parsed.vertices.bone_indices(0, 0), -1);
   EXPECT_THROW(pmx_skin_weights(parsed), Error);
 }
 
 TEST(PmxMesh, ConversionMapsEveryGeometricField) {
-  const PmxModel raw = parse(write_pmx(sample_model(false), WriteOptions()).bytes);
+  const PmxModel raw = parse(write_with(sample_model(false), WriteOptions()).bytes);
   const PmxModel m = pmx_to_amt_frame(raw, 0.5f);
   EXPECT_EQ(m.scale, 0.5f);
   EXPECT_THROW(pmx_to_amt_frame(m), Error);  // already converted
@@ -914,7 +790,7 @@ TEST(PmxText, InvalidUtf8IsReplaced) {
   m.bones[1].name = std::string("a\xC3(\xED\xA0\x80z", 7);  // a truncated sequence and an encoded surrogate
   WriteOptions o;
   o.encoding = PmxTextEncoding::kUtf8;
-  const PmxModel parsed = parse(write_pmx(m, o).bytes);
+  const PmxModel parsed = parse(write_with(m, o).bytes);
   EXPECT_EQ(parsed.bones[1].name, "a\xEF\xBF\xBD(\xEF\xBF\xBD\xEF\xBF\xBD\xEF\xBF\xBDz");
 }
 
@@ -925,7 +801,7 @@ std::string offset_of(const Written& w, const std::string& field) {
 }
 
 TEST(PmxErrors, WrongMagicVersionAndGlobals) {
-  const std::vector<uint8_t> good = write_pmx(sample_model(false), WriteOptions()).bytes;
+  const std::vector<uint8_t> good = write_with(sample_model(false), WriteOptions()).bytes;
   std::vector<uint8_t> b = good;
   b[2] = 'D';
   EXPECT_EQ(parse_error(b),
@@ -953,13 +829,13 @@ TEST(PmxErrors, WrongMagicVersionAndGlobals) {
 TEST(PmxErrors, FaceIndexPastTheVertexCount) {
   PmxModel m = sample_model(false);
   m.faces(2, 1) = 6;
-  const Written w = write_pmx(m, WriteOptions());
+  const Written w = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(w.bytes),
             "model.pmx: offset " + offset_of(w, "faces[2][1]") + ": faces[2][1]: expected an index below 6, found 6");
 }
 
 TEST(PmxErrors, FaceCountNotAMultipleOfThree) {
-  Written w = write_pmx(sample_model(false), WriteOptions());
+  Written w = write_with(sample_model(false), WriteOptions());
   patch_u32(w.bytes, w.offsets.at("faces"), 11);
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + offset_of(w, "faces") +
                                       ": faces: expected a multiple of 3 vertex indices, found 11");
@@ -968,12 +844,12 @@ TEST(PmxErrors, FaceCountNotAMultipleOfThree) {
 TEST(PmxErrors, BoneParentOutOfRange) {
   PmxModel m = sample_model(false);
   m.bones[3].parent = 7;
-  const Written w = write_pmx(m, WriteOptions());
+  const Written w = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + offset_of(w, "bones[3].parent") +
                                       ": bones[3].parent: expected -1 or an index below 5, found 7");
   m = sample_model(false);
   m.bones[2].parent = -2;
-  EXPECT_NE(parse_error(write_pmx(m, WriteOptions()).bytes)
+  EXPECT_NE(parse_error(write_with(m, WriteOptions()).bytes)
                 .find("bones[2].parent: expected -1 or an index below 5, found -2"),
             std::string::npos);
 }
@@ -981,12 +857,12 @@ TEST(PmxErrors, BoneParentOutOfRange) {
 TEST(PmxErrors, BoneParentCycles) {
   PmxModel m = sample_model(false);
   m.bones[1].parent = 3;  // 1 -> 3 -> 2 -> 1
-  const Written w = write_pmx(m, WriteOptions());
+  const Written w = write_with(m, WriteOptions());
   const std::string message = parse_error(w.bytes);
   EXPECT_NE(message.find("parent cycle"), std::string::npos) << message;
   m = sample_model(false);
   m.bones[2].parent = 2;
-  const Written self = write_pmx(m, WriteOptions());
+  const Written self = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(self.bytes), "model.pmx: offset " + offset_of(self, "bones[2].parent") +
                                          ": bones[2].parent: expected another bone or -1, found the bone itself (2)");
 }
@@ -994,34 +870,34 @@ TEST(PmxErrors, BoneParentCycles) {
 TEST(PmxErrors, OtherIndicesOutOfRange) {
   PmxModel m = sample_model(false);
   m.vertices.bone_indices(2, 1) = 9;  // checked once the bone table is known; the offset is still the field's
-  Written w = write_pmx(m, WriteOptions());
+  Written w = write_with(m, WriteOptions());
   const size_t bones_at = w.offsets.at("vertices[2].bones");
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + std::to_string(bones_at + 2) +
                                       ": vertices[2].bones[1]: expected -1 or an index below 5, found 9");
   m = sample_model(false);
   m.bones[4].ik.target = -1;  // an IK target is required
-  w = write_pmx(m, WriteOptions());
+  w = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + offset_of(w, "bones[4].ik.target") +
                                       ": bones[4].ik.target: expected an index below 5, found -1");
   m = sample_model(false);
   m.bones[2].inherit_parent = 5;
-  w = write_pmx(m, WriteOptions());
+  w = write_with(m, WriteOptions());
   EXPECT_NE(parse_error(w.bytes).find("bones[2].inherit_parent: expected -1 or an index below 5, found 5"),
             std::string::npos);
   m = sample_model(false);
   m.rigid_bodies[2].bone = 5;
-  w = write_pmx(m, WriteOptions());
+  w = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + offset_of(w, "rigid_bodies[2].bone") +
                                       ": rigid_bodies[2].bone: expected -1 or an index below 5, found 5");
   m = sample_model(false);
   m.joints[1].rigid_body_b = 3;
-  w = write_pmx(m, WriteOptions());
+  w = write_with(m, WriteOptions());
   EXPECT_EQ(parse_error(w.bytes), "model.pmx: offset " + offset_of(w, "joints[1].rigid_body_b") +
                                       ": joints[1].rigid_body_b: expected -1 or an index below 3, found 3");
 }
 
 TEST(PmxErrors, HugeAndNegativeCounts) {
-  const Written w = write_pmx(sample_model(false), WriteOptions());
+  const Written w = write_with(sample_model(false), WriteOptions());
   for (const char* section : {"vertices", "faces", "materials", "bones", "morphs", "rigid_bodies", "joints"}) {
     SCOPED_TRACE(section);
     std::vector<uint8_t> b = w.bytes;
@@ -1039,7 +915,7 @@ TEST(PmxErrors, HugeAndNegativeCounts) {
 }
 
 TEST(PmxErrors, AbsurdPositionIsRejected) {
-  const Written w = write_pmx(sample_model(false), WriteOptions());
+  const Written w = write_with(sample_model(false), WriteOptions());
   std::vector<uint8_t> b = w.bytes;
   patch_f32(b, w.offsets.at("vertices[2].position"), 1e15f);
   EXPECT_EQ(parse_error(b), "model.pmx: vertices: expected coordinates within 10000 of the origin, found 1e+15 11 -0.3 "
@@ -1047,7 +923,7 @@ TEST(PmxErrors, AbsurdPositionIsRejected) {
 }
 
 TEST(PmxErrors, NonFiniteAndOutOfRangeNumbers) {
-  const Written w = write_pmx(sample_model(false), WriteOptions());
+  const Written w = write_with(sample_model(false), WriteOptions());
   std::vector<uint8_t> b = w.bytes;
   patch_f32(b, w.offsets.at("vertices[2].position"), std::nanf(""));
   EXPECT_EQ(parse_error(b), "model.pmx: offset " + offset_of(w, "vertices[2].position") +
@@ -1078,7 +954,7 @@ TEST(PmxErrors, NonFiniteAndOutOfRangeNumbers) {
 }
 
 TEST(PmxErrors, TextLengths) {
-  const Written w = write_pmx(sample_model(false), WriteOptions());
+  const Written w = write_with(sample_model(false), WriteOptions());
   std::vector<uint8_t> b = w.bytes;
   patch_u32(b, 17, 3);  // header.name: odd UTF-16 length
   EXPECT_EQ(parse_error(b),
@@ -1116,12 +992,12 @@ TEST(PmxErrors, EveryTruncationIsAnError) {
     o.vertex_index_size = size;
     o.index_size = size;
     o.encoding = size == 2 ? PmxTextEncoding::kUtf8 : PmxTextEncoding::kUtf16Le;
-    expect_every_truncation_fails(write_pmx(sample_model(false), o), SIZE_MAX);
+    expect_every_truncation_fails(write_with(sample_model(false), o), SIZE_MAX);
   }
   WriteOptions o;
   o.version = 2.1f;
   o.extra_globals = 2;
-  const Written w = write_pmx(sample_model(true), o);
+  const Written w = write_with(sample_model(true), o);
   // A 2.1 file cut exactly after the joints is a valid file without soft bodies.
   expect_every_truncation_fails(w, w.offsets.at("end_of_joints"));
 }
@@ -1129,7 +1005,7 @@ TEST(PmxErrors, EveryTruncationIsAnError) {
 TEST(PmxErrors, RandomCorruptionNeverCrashes) {
   WriteOptions o;
   o.version = 2.1f;
-  const std::vector<uint8_t> good = write_pmx(sample_model(true), o).bytes;
+  const std::vector<uint8_t> good = write_with(sample_model(true), o).bytes;
   std::mt19937 rng(1234);
   std::uniform_int_distribution<size_t> position(0, good.size() - 1);
   std::uniform_int_distribution<int> byte(0, 255), edits(1, 8);
