@@ -56,6 +56,19 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   EXPECT_NE(check.out.find("PASS no explosion"), std::string::npos) << check.out;
   EXPECT_TRUE(fs::is_regular_file(dir / "data" / "quality" / "report.md"));
 
+  // A model with broken physics is repaired with a warning line naming the file, the body and the field.
+  PmxModel broken = test::pmx_humanoid();
+  broken.rigid_bodies[3].mass = 0;
+  fs::create_directories(dir / "broken");
+  write_pmx(broken, (dir / "broken" / "broken.pmx").string());
+  const test::CommandResult repaired = test::expect_success(
+      dir, {"dataset", "build", "--out", "repaired", "--pmx", "broken/broken.pmx", "--motions", "", "--procedural", "1",
+            "--frames", "4", "--threads", "1"});
+  EXPECT_NE(repaired.err.find("build: warning: broken/broken.pmx: rigid_bodies[3] '髪2': mass: expected a positive "
+                              "mass on a simulated body (mode 1), found 0; it follows its bone (mode 0)"),
+            std::string::npos)
+      << repaired.err;
+
   // A rerun naming another model in the folder's place is refused, writing nothing.
   PmxModel other = test::pmx_humanoid();
   other.rigid_bodies[2].mass = 3.0f;
@@ -96,7 +109,9 @@ TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
       dir, {{{"animate", "--character", "generated:3", "--motion", cmu_walk(), "--apparel", "physics", "--out", "g.glb"},
              {"generated:3: --apparel physics: expected a PMX model with rigid bodies", "use --apparel learned"}},
             {{"animate", "--character", "still.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--out", "s.glb"},
-             {"still.pmx: --apparel physics: expected a PMX model with simulated rigid bodies", "none simulated"}}});
+             {"still.pmx: --apparel physics: expected a PMX model with simulated rigid bodies", "none simulated"}},
+            {{"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--html", "v"},
+             {"--html: expected no viewer folder with --apparel physics"}}});
   test::expect_one_line_error(
       test::run_amt(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "cloth",
                           "--out", "c.glb"}),
