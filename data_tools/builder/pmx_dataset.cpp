@@ -81,8 +81,8 @@ PmxModel repair_pmx_physics(const PmxModel& model, std::vector<std::string>& war
     clamp_field(r.friction, 0.0f, 1e30f, where, "friction", "a value >= 0", warnings);
     clamp_field(r.restitution, 0.0f, 1e30f, where, "restitution", "a value >= 0", warnings);
     if (r.group > 15) {
-      warnings.push_back(detail::concat(where, "group: expected 0 to 15, found ", static_cast<int>(r.group),
-                                        "; set to 15"));
+      warnings.push_back(
+          detail::concat(where, "group: expected 0 to 15, found ", static_cast<int>(r.group), "; set to 15"));
       r.group = 15;
     }
   }
@@ -171,7 +171,8 @@ PmxCharacter pmx_character(PmxModel model, const std::optional<JointMapFile>& jo
   std::vector<bool> placed(kCanonicalJointCount, false);
   for (const int j : c.rest.placed) placed[static_cast<size_t>(j)] = true;
   for (int j = 0; j < kCanonicalJointCount; ++j) {
-    if (!placed[static_cast<size_t>(j)]) own[static_cast<size_t>(c.rest.mapping.source_joint[static_cast<size_t>(j)])] = j;
+    if (!placed[static_cast<size_t>(j)])
+      own[static_cast<size_t>(c.rest.mapping.source_joint[static_cast<size_t>(j)])] = j;
   }
   c.carrier.assign(static_cast<size_t>(B), -1);
   for (int b = 0; b < B; ++b) {
@@ -297,7 +298,8 @@ Transforms simulate_pmx_clip(const PmxCharacter& c, const Transforms& joints, in
             " x ", J, " joint transforms, found ", joints.size());
   if (!simulator) simulator = std::make_unique<PmxRigSimulator>(c, options);
   auto pose = [&](int t) {
-    return Transforms(joints.begin() + static_cast<ptrdiff_t>(t * J), joints.begin() + static_cast<ptrdiff_t>((t + 1) * J));
+    return Transforms(joints.begin() + static_cast<ptrdiff_t>(t * J),
+                      joints.begin() + static_cast<ptrdiff_t>((t + 1) * J));
   };
   simulator->start(pose(0));
   Transforms rig = simulator->skinning();
@@ -336,7 +338,8 @@ PmxDatasetCharacter pmx_dataset_character(const PmxCharacter& c, const std::stri
     float weight = 0;
     for (int k = 0; k < kMaxInfluences; ++k) {
       const int b = c.skin.indices(i, k);
-      if (b >= 0 && b < B && driven[static_cast<size_t>(b)] && c.skin.weights(i, k) > weight) best = b, weight = c.skin.weights(i, k);
+      if (b >= 0 && b < B && driven[static_cast<size_t>(b)] && c.skin.weights(i, k) > weight)
+        best = b, weight = c.skin.weights(i, k);
     }
     if (best < 0) {  // a weight on a driven bone that pmx_skin_weights dropped (repeats merged): any driven one
       for (int k = 0; k < 4; ++k) {
@@ -405,14 +408,16 @@ PmxDatasetCharacter pmx_dataset_character(const PmxCharacter& c, const std::stri
   // Faces among body vertices first (the body surface of the quality gates), then the others, each in file order.
   std::vector<Eigen::Vector3i> body, other;
   for (int f = 0; f < c.mesh.num_faces(); ++f) {
-    const Eigen::Vector3i face(position[static_cast<size_t>(c.mesh.F(f, 0))], position[static_cast<size_t>(c.mesh.F(f, 1))],
+    const Eigen::Vector3i face(position[static_cast<size_t>(c.mesh.F(f, 0))],
+                               position[static_cast<size_t>(c.mesh.F(f, 1))],
                                position[static_cast<size_t>(c.mesh.F(f, 2))]);
     (face.maxCoeff() < out.body_vertices ? body : other).push_back(face);
   }
   out.body_faces = static_cast<int>(body.size());
   d.mesh.F.resize(static_cast<Eigen::Index>(body.size() + other.size()), 3);
   for (size_t f = 0; f < body.size(); ++f) d.mesh.F.row(static_cast<Eigen::Index>(f)) = body[f].transpose();
-  for (size_t f = 0; f < other.size(); ++f) d.mesh.F.row(static_cast<Eigen::Index>(body.size() + f)) = other[f].transpose();
+  for (size_t f = 0; f < other.size(); ++f)
+    d.mesh.F.row(static_cast<Eigen::Index>(body.size() + f)) = other[f].transpose();
 
   rig.bone_names = c.file_skeleton.names;
   rig.bone_parents.assign(c.file_skeleton.parents.begin(), c.file_skeleton.parents.end());

@@ -26,9 +26,9 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   const fs::path dir = test::temp_dir("pmx_dataset_cli");
   fs::create_directories(dir / "models");
   write_pmx(test::pmx_humanoid(), (dir / "models" / "humanoid.pmx").string());
-  const test::CommandResult built = test::expect_success(
-      dir, {"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "", "--procedural", "2", "--frames",
-            "12", "--threads", "1"});
+  const test::CommandResult built =
+      test::expect_success(dir, {"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "",
+                                 "--procedural", "2", "--frames", "12", "--threads", "1"});
   EXPECT_EQ(built.out, "wrote data\n");
   EXPECT_NE(built.err.find("pmx-0000 <- models/humanoid.pmx: 168 vertices, 28 bones, 5 rigid bodies (3 simulated)"),
             std::string::npos)
@@ -61,9 +61,9 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   broken.rigid_bodies[3].mass = 0;
   fs::create_directories(dir / "broken");
   write_pmx(broken, (dir / "broken" / "broken.pmx").string());
-  const test::CommandResult repaired = test::expect_success(
-      dir, {"dataset", "build", "--out", "repaired", "--pmx", "broken/broken.pmx", "--motions", "", "--procedural", "1",
-            "--frames", "4", "--threads", "1"});
+  const test::CommandResult repaired =
+      test::expect_success(dir, {"dataset", "build", "--out", "repaired", "--pmx", "broken/broken.pmx", "--motions", "",
+                                 "--procedural", "1", "--frames", "4", "--threads", "1"});
   EXPECT_NE(repaired.err.find("build: warning: broken/broken.pmx: rigid_bodies[3] '髪2': mass: expected a positive "
                               "mass on a simulated body (mode 1), found 0; it follows its bone (mode 0)"),
             std::string::npos)
@@ -84,9 +84,9 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
 TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
   const fs::path dir = test::temp_dir("pmx_animate_physics");
   write_pmx(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
-  const test::CommandResult run = test::expect_success(
-      dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--frames", "6",
-            "--out", "walk.glb", "--threads", "1"});
+  const test::CommandResult run =
+      test::expect_success(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel",
+                                 "physics", "--frames", "6", "--out", "walk.glb", "--threads", "1"});
   EXPECT_EQ(run.out.rfind("wrote walk.glb", 0), 0u) << run.out;
   EXPECT_NE(run.out.find("apparel: physics (the PMX model's own 3 simulated rigid bodies and 3 joints"),
             std::string::npos)
@@ -106,16 +106,16 @@ TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
   for (PmxRigidBody& r : still.rigid_bodies) r.mode = PmxPhysicsMode::kFollowBone;
   write_pmx(still, (dir / "still.pmx").string());
   test::expect_errors_writing_nothing(
-      dir, {{{"animate", "--character", "generated:3", "--motion", cmu_walk(), "--apparel", "physics", "--out", "g.glb"},
-             {"generated:3: --apparel physics: expected a PMX model with rigid bodies", "use --apparel learned"}},
-            {{"animate", "--character", "still.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--out", "s.glb"},
-             {"still.pmx: --apparel physics: expected a PMX model with simulated rigid bodies", "none simulated"}},
-            {{"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--html", "v"},
-             {"--html: expected no viewer folder with --apparel physics"}}});
-  test::expect_one_line_error(
-      test::run_amt(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "cloth",
-                          "--out", "c.glb"}),
-      {"--apparel"}, 2);
+      dir,
+      {{{"animate", "--character", "generated:3", "--motion", cmu_walk(), "--apparel", "physics", "--out", "g.glb"},
+        {"generated:3: --apparel physics: expected a PMX model with rigid bodies", "use --apparel learned"}},
+       {{"animate", "--character", "still.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--out", "s.glb"},
+        {"still.pmx: --apparel physics: expected a PMX model with simulated rigid bodies", "none simulated"}},
+       {{"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--html", "v"},
+        {"--html: expected no viewer folder with --apparel physics"}}});
+  test::expect_one_line_error(test::run_amt(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(),
+                                                  "--apparel", "cloth", "--out", "c.glb"}),
+                              {"--apparel"}, 2);
 }
 
 }  // namespace

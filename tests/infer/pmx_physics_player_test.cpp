@@ -9,8 +9,8 @@
 #include <filesystem>
 #include <string>
 
-#include "data_tools/geometry/motion.h"
 #include "data_tools/formats/pmx_export.h"
+#include "data_tools/geometry/motion.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/test_support.h"
 

@@ -14,9 +14,9 @@
 #include "data_tools/builder/dataset_builder.h"
 #include "data_tools/builder/pmx_physics.h"
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/pmx_export.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/motion.h"
-#include "data_tools/formats/pmx_export.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/test_support.h"
 
@@ -44,7 +44,8 @@ Transforms turned_fixture_pose(const PhysicsRig& rig, float angle) {
 }
 
 TEST(PmxDataset, ConstraintFixturesSimulateThroughTheNewPathAsThroughThePhysicsWorld) {
-  for (const char* name : {"constraint_test.pmx", "constraint_test2.pmx", "constraint_test3.pmx", "constraint_test4.pmx"}) {
+  for (const char* name :
+       {"constraint_test.pmx", "constraint_test2.pmx", "constraint_test3.pmx", "constraint_test4.pmx"}) {
     SCOPED_TRACE(name);
     const PmxCharacter c = pmx_physics_character(read_pmx(fixture(name)));
     EXPECT_TRUE(c.warnings.empty()) << c.warnings.front();
@@ -81,9 +82,9 @@ TEST(PmxDataset, ConstraintFixturesSimulateThroughTheNewPathAsThroughThePhysicsW
 
 TEST(PmxDataset, BrokenPhysicsIsRepairedWithAWarningNamingTheBody) {
   PmxModel m = test::pmx_humanoid("broken.pmx");
-  m.rigid_bodies[3].mass = 0;                  // a simulated hair body without mass
+  m.rigid_bodies[3].mass = 0;                             // a simulated hair body without mass
   m.rigid_bodies[4].size = Eigen::Vector3f(0, 0.9f, -1);  // zero and negative box extents
-  PmxRigidBody orphan = m.rigid_bodies[1];      // a kinematic body without a bone
+  PmxRigidBody orphan = m.rigid_bodies[1];                // a kinematic body without a bone
   orphan.name = "orphan";
   orphan.bone = -1;
   m.rigid_bodies.push_back(orphan);  // body 5
@@ -159,10 +160,10 @@ TEST(PmxDataset, BonesFollowTheirCanonicalCarriers) {
   EXPECT_TRUE(c.warnings.empty());
   EXPECT_EQ(c.simulated_bodies, 3);
   const auto carrier = [&](const std::string& name) { return c.carrier.at(size_t(c.file_skeleton.index_of(name))); };
-  EXPECT_EQ(carrier("センター"), kPelvis);    // above the root
+  EXPECT_EQ(carrier("センター"), kPelvis);  // above the root
   EXPECT_EQ(carrier("下半身"), kPelvis);
   EXPECT_EQ(carrier("左腕捩"), kLeftShoulder);  // twist bone between shoulder and elbow
-  EXPECT_EQ(carrier("左ひざD"), kLeftKnee);    // D bone: its parent is 左足, its rotation 左ひざ's
+  EXPECT_EQ(carrier("左ひざD"), kLeftKnee);     // D bone: its parent is 左足, its rotation 左ひざ's
   EXPECT_EQ(carrier("左ひじ"), kLeftElbow);
   EXPECT_EQ(carrier("髪1"), kHead);
   EXPECT_EQ(carrier("髪3"), kHead);
@@ -220,11 +221,13 @@ TEST(PmxDataset, BodyIsExactAndHairIsSimulated) {
     ASSERT_TRUE(truth.allFinite());
     for (int i = 0; i < N; ++i) {
       const float e = (truth.row(i) - skinned.row(i)).norm();
-      if (i < d.body_vertices) body_error = std::max(body_error, e);
-      else hair_offset = std::max(hair_offset, e);
+      if (i < d.body_vertices)
+        body_error = std::max(body_error, e);
+      else
+        hair_offset = std::max(hair_offset, e);
     }
   }
-  EXPECT_LT(body_error, 1e-4f);  // the body is the motion's, through the model's own weights
+  EXPECT_LT(body_error, 1e-4f);   // the body is the motion's, through the model's own weights
   EXPECT_GT(hair_offset, 0.01f);  // the hair lags behind the head: physics, not skinning
   EXPECT_LT(hair_offset, 1.5f * d.pieces[0].chain_length * 2);
 

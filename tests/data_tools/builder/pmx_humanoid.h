@@ -28,7 +28,8 @@ inline PmxBone make_bone(const std::string& name, const Eigen::Vector3f& positio
 inline void add_box(PmxModel& m, std::vector<Eigen::Vector3f>& V, std::vector<int>& bone_of,
                     std::vector<Eigen::Vector3i>& F, const Eigen::Vector3f& a, const Eigen::Vector3f& b, float h,
                     int bone) {
-  const Eigen::Vector3f lo = a.cwiseMin(b) - Eigen::Vector3f::Constant(h), hi = a.cwiseMax(b) + Eigen::Vector3f::Constant(h);
+  const Eigen::Vector3f lo = a.cwiseMin(b) - Eigen::Vector3f::Constant(h),
+                        hi = a.cwiseMax(b) + Eigen::Vector3f::Constant(h);
   const int first = static_cast<int>(V.size());
   for (int k = 0; k < 8; ++k) {
     V.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
