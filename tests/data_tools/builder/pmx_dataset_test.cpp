@@ -236,6 +236,27 @@ TEST(PmxDataset, BodyIsExactAndHairIsSimulated) {
   EXPECT_EQ(simulate_pmx_clip(c, joints, T, {}, again), rig);
 }
 
+TEST(PmxDataset, AModelWithoutPhysicsIsABodyWithoutApparel) {
+  PmxModel m = test::pmx_humanoid("bare.pmx");
+  m.rigid_bodies.clear();
+  m.joints.clear();
+  const PmxCharacter c = pmx_character(m);
+  EXPECT_EQ(c.simulated_bodies, 0);
+  const PmxDatasetCharacter d = pmx_dataset_character(c, "pmx-0000", "test");
+  EXPECT_TRUE(d.pieces.empty());
+  EXPECT_EQ(d.body_vertices, d.data.mesh.num_vertices());
+  const Transforms joints = humanoid_clip(c.skeleton(), 5);
+  std::unique_ptr<PmxRigSimulator> simulator;
+  const Transforms rig = simulate_pmx_clip(c, joints, 5, {}, simulator);
+  // Every bone is its bone pass: rigid with its carrier.
+  const Transforms last(joints.end() - kCanonicalJointCount, joints.end());
+  const Transforms expected = pmx_transforms_to_amt(pmx_bone_pose(c, last), c.scale);
+  for (int b = 0; b < c.num_bones(); ++b) {
+    EXPECT_LT((simulator->bone_transforms()[size_t(b)] - expected[size_t(b)]).cwiseAbs().maxCoeff(), 1e-6f) << b;
+  }
+  EXPECT_EQ(rig.size(), size_t(5 * c.num_bones()));
+}
+
 TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
   const std::filesystem::path dir = test::temp_dir("pmx_dataset_build");
   const std::string model = (dir / "humanoid.pmx").string();
