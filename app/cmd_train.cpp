@@ -209,8 +209,9 @@ void add_train_command(CLI::App& app) {
                     "refiner: the trained apparel module; apparel_refiner --resume: the apparel checkpoint "
                     "(default: apparel.ckpt next to the resumed refiner.ckpt)");
   train->add_option("--skinning", o.skinning_checkpoint,
-                    "refiner, apparel_refiner: the trained skinning predictor for the body (default: ground-truth "
-                    "body weights; all: <out>/skinning.ckpt)");
+                    "refiner, apparel_refiner: the trained skinning predictor for the body; apparel (local form): the "
+                    "one whose body weights skin the anchors, as at run time (default: ground-truth body weights; "
+                    "all: <out>/skinning.ckpt for the refiner)");
   train->add_option("--loader-threads", o.loader_threads, "Threads reading samples ahead of training")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();

@@ -227,11 +227,6 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->body_edges = induced_edges(N, t->edges, t->body_ids);
     t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
-    t->apparel_anchor = options_.apparel_anchor;
-    t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->edges, t->apparel_ids,
-                                                           t->body_ids, t->body_weights.index_select(0, t->body_ids));
-    t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
-                                     t->apparel_neighbors, t->body_weights.index_select(0, t->body_ids));
     if (options_.kind == ModuleKind::kSegmenter) {
       const MatrixXfR features =
           segmentation_features(data.mesh.V, data.mesh.F, data.skeleton.rest_joints, data.skeleton.parents);
@@ -248,6 +243,15 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
       const MatrixXfR G = geodesic_distances(body.V, body.F, data.skeleton.rest_joints);
       t->G_body = float_tensor(G.data(), {N_b, J});
     }
+    // The anchors' weights: ground truth, or what options_.anchor_body_weights gives (a trained predictor's).
+    const at::Tensor anchor_body_weights = options_.anchor_body_weights && t->body_ids.size(0) > 0
+                                               ? options_.anchor_body_weights(*t)
+                                               : t->body_weights.index_select(0, t->body_ids);
+    t->apparel_anchor = options_.apparel_anchor;
+    t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->edges, t->apparel_ids,
+                                                           t->body_ids, anchor_body_weights);
+    t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
+                                     t->apparel_neighbors, anchor_body_weights);
     c.tensors = std::move(t);
   });
   return c.tensors;

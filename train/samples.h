@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -109,6 +110,12 @@ struct SampleSourceOptions {
   /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):
   /// "nearest" (the global form's and the earlier local checkpoints') or "attachment".
   std::string apparel_anchor = "nearest";
+  /// When set: the body weights (N_b, J) that skin the apparel anchors and build the apparel graph,
+  /// from a character's tensors (G_body computed first); the local apparel module then trains on the
+  /// anchors it meets at run time, skinned with a trained skinning predictor's weights
+  /// (`amt train apparel --skinning CKPT`). Unset: the ground-truth body weights. Called from the
+  /// loader threads: must be thread-safe (a frozen network's forward under NoGradGuard is).
+  std::function<at::Tensor(const CharacterTensors&)> anchor_body_weights;
 };
 
 /// Samples over one or more shards. Opening reads only attributes, clip infos and apparel masks;

@@ -695,9 +695,23 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   sampling.frames = kind == ModuleKind::kSkinning && !end_to_end ? o.skinning_frames : o.window;
   sampling.seed = o.seed;
   sampling.geodesics = sampling.kind == ModuleKind::kRefiner && !o.skinning_checkpoint.empty();
+  // The local apparel module with --skinning: anchors skinned with the predictor's body weights, as at run
+  // time. The predictor is loaded once the shards' joint names are known, before any character is read.
+  auto anchor_skinning = std::make_shared<SkinningPredictor>(nullptr);
+  if (local_apparel && !o.skinning_checkpoint.empty()) {
+    sampling.geodesics = true;
+    sampling.anchor_body_weights = [anchor_skinning](const CharacterTensors& c) {
+      torch::NoGradGuard frozen;
+      return (*anchor_skinning)->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body).contiguous();
+    };
+  }
   const std::vector<std::string> shards = resolve_shards(data);
   SampleSource source(shards, sampling);
   const std::vector<std::string>& joint_names = source.joint_names();
+  if (sampling.anchor_body_weights) {
+    *anchor_skinning = load_frozen<SkinningPredictor, SkinningPredictorOptions>(o.skinning_checkpoint,
+                                                                               ModuleKind::kSkinning, joint_names);
+  }
 
   int64_t first_step = 0;
   for (size_t i = 0; i < resumed.size(); ++i) {

@@ -116,8 +116,9 @@ struct TrainOptions {
   /// Refiner only: the trained apparel module (required), whose rollout gives Â. End-to-end run: the
   /// apparel checkpoint resumed along with `resume` (empty: apparel.ckpt next to it).
   std::string apparel_checkpoint;
-  /// Refiner and end-to-end run: the trained skinning predictor for B̂; empty uses the ground-truth
-  /// body weights.
+  /// Refiner and end-to-end run: the trained skinning predictor for B̂; local apparel module: the
+  /// predictor whose body weights skin its anchors and build its graph, as at run time. Empty uses the
+  /// ground-truth body weights.
   std::string skinning_checkpoint;
   /// Loader threads reading samples ahead (0: read on the training thread) and how far ahead.
   int loader_threads = 2;

@@ -75,6 +75,37 @@ TEST(Samples, CharacterTensorsAreConsistent) {
   EXPECT_EQ(source.num_items(), 2 * (30 - 4 + 1));
 }
 
+TEST(Samples, AnchorBodyWeightsSkinTheAnchorsAndBuildTheGraph) {
+  test::use_one_thread();
+  SampleSourceOptions options;
+  options.kind = ModuleKind::kApparel;
+  options.frames = 4;
+  options.apparel_anchor = "attachment";
+  SampleSource truth({micro_dataset()}, options);
+  const auto gt = truth.character(0);
+  // Weights that put every body vertex on joint 3 (a stand-in for a predictor's), given G_body.
+  bool had_geodesics = false;
+  options.geodesics = true;
+  options.anchor_body_weights = [&](const CharacterTensors& c) {
+    had_geodesics = c.G_body.defined() && c.G_body.size(0) == c.body_ids.size(0);
+    at::Tensor W = at::zeros({c.body_ids.size(0), c.joints.size(0)});
+    W.select(1, 3).fill_(1.0f);
+    return W;
+  };
+  SampleSource predicted({micro_dataset()}, options);
+  const auto c = predicted.character(0);
+  EXPECT_TRUE(had_geodesics);
+  const int64_t N_a = c->apparel_ids.size(0);
+  ASSERT_GT(N_a, 0);
+  at::Tensor expected = at::zeros({N_a, 22});
+  expected.select(1, 3).fill_(1.0f);
+  EXPECT_TRUE(at::equal(c->apparel_anchor_weights, expected));
+  EXPECT_TRUE(at::equal(c->apparel_graph.frame_joints, at::full({N_a}, 3, at::kLong)));
+  EXPECT_TRUE(at::equal(c->apparel_graph.contact_weights, expected));
+  EXPECT_FALSE(at::equal(gt->apparel_anchor_weights, expected));  // the ground truth's differ
+  EXPECT_TRUE(at::equal(c->body_weights, gt->body_weights));      // the training targets' weights are untouched
+}
+
 TEST(Samples, SequenceDependsOnSeedAndIndexOnly) {
   SampleSourceOptions options;
   options.kind = ModuleKind::kApparel;
