@@ -50,6 +50,11 @@ void add_animate_command(CLI::App& app) {
                   "a PMX model's physics-driven vertices, a glTF's chains of bones outside the canonical skeleton, a "
                   "dataset or generated character's apparel), or a "
                   "per-vertex 0/1 mask file (JSON array or text)");
+  cmd->add_option("--apparel", o->apparel,
+                  "What moves the apparel: learned (the apparel module, default) or physics (a PMX model's own rigid "
+                  "bodies and joints, simulated under the motion as its artist tuned them, baked into the output)")
+      ->check(CLI::IsMember({"learned", "physics"}))
+      ->capture_default_str();
   cmd->add_option("--fps", *fps, "Output frame rate (default: 30 for BVH/glTF motions, a dataset clip's own rate)")
       ->check(CLI::Range(0.001, 1000.0));
   cmd->add_option("--frames", o->playback.frames, "At most this many frames (0: all)")->check(CLI::NonNegativeNumber);
@@ -72,7 +77,8 @@ void add_animate_command(CLI::App& app) {
       AMT_CHECK(!options.viewer_dir.empty(), "--html: expected the repository's viewer/ folder above the amt program "
                 "or in the current folder, found none: run amt from a checkout");
     }
-    if (model->count() == 0) options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
+    if (model->count() == 0 && options.apparel != "physics")
+      options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
     if (*fps > 0) options.playback.fps = float(*fps);
     if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;
     options.resolve_penetration = !*no_resolve;

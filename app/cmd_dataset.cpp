@@ -95,14 +95,21 @@ constexpr const char* kDefaultMotions = "data/mocap/cmu";
 // `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/builder/dataset_builder.h).
 void add_build_command(CLI::App& dataset) {
   auto* build = dataset.add_subcommand(
-      "build", "Build a dataset: procedural dressed characters simulated under every motion clip, one HDF5 shard "
-               "per character (seeded, resumable, --shard i/n for several processes)");
+      "build", "Build a dataset: procedural dressed characters and PMX models (--pmx) simulated under every motion "
+               "clip, one HDF5 shard per character (seeded, resumable, --shard i/n for several processes)");
   auto options = std::make_shared<DatasetBuildOptions>();
   auto shard = std::make_shared<std::string>("0/1");
   build->add_option("--out", options->out, "Output folder (shards, manifest.json, character records)")->required();
   build->add_option("--seed", options->seed, "Seed of characters, apparel, splits and procedural motions")
       ->capture_default_str();
-  build->add_option("--characters", options->characters, "Number of characters")->capture_default_str();
+  auto* characters = build->add_option("--characters", options->characters,
+                                       "Number of procedural characters (default 32, or 0 with --pmx)");
+  build->add_option("--pmx", options->pmx,
+                    "PMX models (files or folders of *.pmx), each a character simulated with its own rigid bodies "
+                    "and joints; alone or beside --characters N");
+  build->add_option("--pmx-metres-per-unit", options->pmx_metres_per_unit,
+                    "Metres per PMX unit of the --pmx models (MMD's 0.08; physics runs in their units)")
+      ->capture_default_str();
   auto* motions = build->add_option(
       "--motions", options->motions,
       "Folder of BVH files (every *.bvh); \"\" for none. " + repository_default_help(kDefaultMotions));
@@ -121,7 +128,8 @@ void add_build_command(CLI::App& dataset) {
       ->capture_default_str();
   build->add_option("--shard", *shard, "Build characters c with c % n == i (i/n)")->capture_default_str();
   add_threads_option(*build);
-  build->callback([options, shard, motions] {
+  build->callback([options, shard, motions, characters] {
+    if (characters->count() == 0 && !options->pmx.empty()) options->characters = 0;
     if (motions->count() == 0) {
       options->motions = repository_default(kDefaultMotions, "--motions",
                                             "FOLDER (BVH files), or --motions \"\" for procedural motions only");

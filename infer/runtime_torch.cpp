@@ -4,12 +4,14 @@
 #include <c10/core/InferenceMode.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "data_tools/geometry/error.h"
@@ -17,6 +19,7 @@
 #include "data_tools/geometry/motion.h"
 #include "data_tools/formats/render.h"
 #include "data_tools/formats/viewer_folder.h"
+#include "infer/pmx_physics_player.h"
 
 namespace amt {
 
@@ -163,10 +166,164 @@ std::string default_bind_path(const std::string& out) {
   return output_kind(out) == "obj" ? p.string() + ".bind" : p.replace_extension(".bind").string();
 }
 
+namespace {
+
+// What both apparel paths do around their frames: the picture's four frames (small renderings kept as they come:
+// memory stays flat), the progress line on stderr, and the per-frame times of the summary.
+class FrameLoop {
+ public:
+  FrameLoop(const AnimateOptions& o, const TriMesh& mesh, int frames) : o_(o), F_(mesh.F), frames_(frames) {
+    if (!o.picture.empty()) {
+      for (const double share : {0.2, 0.4, 0.6, 0.8}) picture_frames_.push_back(int(share * (frames - 1)));
+    }
+    picture_.width = 320;
+    picture_.height = 400;
+    picture_.world_height = 1.25f * float(mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff());
+    seconds_.reserve(size_t(frames));
+  }
+
+  // Frame t written: V (#V by 3) with `mask`, `seconds` of wall time.
+  void done(int t, const MatrixX3f& V, const std::vector<uint8_t>& mask, double seconds) {
+    for (const int k : picture_frames_) {
+      if (k == t) pictures_.push_back(render_character(TriMesh{V, F_}, mask, picture_));
+    }
+    seconds_.push_back(float(seconds));
+    if (o_.verbose && (seconds_since(last_print_) > 1.0 || t + 1 == frames_)) {
+      last_print_ = Clock::now();
+      const double elapsed = seconds_since(start_), rate = (t + 1) / std::max(elapsed, 1e-9);
+      std::fprintf(stderr, "\ranimate: %d/%d frames, %.1f frames/s, ETA %.0f s   ", t + 1, frames_, rate,
+                   (frames_ - t - 1) / rate);
+      if (t + 1 == frames_) std::fprintf(stderr, "\n");
+    }
+  }
+
+  // Writes the picture and puts the frame times' median and 95th percentile into `s`.
+  void finish(AnimateSummary& s) {
+    if (!pictures_.empty()) write_png(image_grid(pictures_, int(pictures_.size())), o_.picture);
+    std::sort(seconds_.begin(), seconds_.end());
+    s.frame_median = seconds_[seconds_.size() / 2];
+    s.frame_p95 = seconds_[std::min(seconds_.size() - 1, size_t(std::ceil(0.95 * seconds_.size())) - 1)];
+  }
+
+ private:
+  const AnimateOptions& o_;
+  const MatrixX3i& F_;
+  int frames_;
+  std::vector<int> picture_frames_;
+  std::vector<Image> pictures_;
+  RenderOptions picture_;
+  std::vector<float> seconds_;
+  Clock::time_point last_print_ = Clock::now(), start_ = Clock::now();
+};
+
+// The input lines of a verbose run: character, its joint mapping, motion and its mapping.
+void print_inputs(const RuntimeCharacter& character, const SourceMotion& source) {
+  std::cerr << "animate: character " << character.name << " (" << character.mesh.num_vertices() << " vertices, "
+            << character.file_skeleton.num_joints() << " joints)\n";
+  if (!character.dataset.empty()) {
+    std::cerr << "animate: character skeleton is the dataset's canonical skeleton\n";
+  } else {
+    std::cerr << "animate: character " << character.rest.describe(character.file_skeleton.names) << "\n";
+  }
+  std::cerr << "animate: motion " << source.name << " (" << source.motion.num_frames() << " frames at "
+            << source.motion.fps << " fps)\n";
+  if (!source.mapping.empty()) std::cerr << "animate: motion " << source.mapping << "\n";
+}
+
+// The output's description: the character's mesh and canonical skeleton, the clip, and the summary's counts.
+OutputInfo output_info(const RuntimeCharacter& character, const SourceMotion& source, const AnimateSummary& s) {
+  OutputInfo info;
+  info.character = character.name;
+  info.mesh = character.mesh;
+  info.skeleton = character.skeleton;
+  info.clip = source.dataset_clip.empty() ? source.name : source.dataset_clip;
+  info.motion = source.name;
+  info.frames = s.frames;
+  info.fps = s.fps;
+  return info;
+}
+
+// `amt animate --apparel physics`: the PMX model's own physics under the motion, skinned by its own rig, streamed
+// to the output. No network and no bind: the model folder is not read.
+AnimateSummary animate_with_physics(const AnimateOptions& o) {
+  const auto job_start = Clock::now();
+  AnimateSummary s;
+  s.physics = true;
+  AMT_CHECK(o.html_dir.empty(), "--html: expected no viewer folder with --apparel physics (it shows the learned "
+            "prediction beside skinning); use --out FILE.glb");
+  AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
+  output_kind(o.out);
+  const std::string& path = o.character.spec;
+  std::string e = std::filesystem::path(path).extension().string();
+  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  AMT_CHECK(e == ".pmx", path, ": --apparel physics: expected a PMX model with rigid bodies (.pmx), found a ",
+            e.empty() ? std::string("file without extension") : e + " character",
+            " that has no physics rig of its own; use --apparel learned");
+  const RuntimeCharacter character = load_character(o.character);
+  const SourceMotion source = load_motion(o.motion);
+  const MotionPlayer player(source, character, o.playback);
+  std::optional<JointMapFile> joint_map;
+  if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
+  PmxSimulationOptions simulation;
+  simulation.fps = player.fps();
+  PmxPhysicsPlayer physics(path, joint_map, simulation);
+  const PmxCharacter& pmx = physics.character();
+  int apparel = 0;
+  for (const uint8_t m : pmx.apparel_mask) apparel += m;
+  s.apparel = "physics (the PMX model's own " + std::to_string(pmx.simulated_bodies) + " simulated rigid bodies and " +
+              std::to_string(pmx.model.joints.size()) + " joints, MMD gravity, simulated in PMX units)";
+  s.apparel_source = "the PMX physics: " + std::to_string(apparel) + " vertices on bones that simulated rigid bodies drive";
+  if (o.verbose) {
+    print_inputs(character, source);
+    for (const std::string& warning : pmx.warnings) std::cerr << "animate: warning: " << warning << "\n";
+    std::cerr << "animate: apparel: " << s.apparel << "\n";
+  }
+  s.load_seconds = seconds_since(job_start);
+  check_output_writable(o.out);
+  s.vertices = character.mesh.num_vertices();
+  s.apparel_vertices = apparel;
+  s.frames = player.num_frames();
+  s.fps = player.fps();
+  s.exact_motion = player.exact();
+
+  OutputInfo info = output_info(character, source, s);
+  info.apparel_mask = pmx.apparel_mask;
+  info.weights = pmx_body_weights(pmx);
+  std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+  const Transforms first = player.frame(0);
+  s.lead_in = std::max(0, o.playback.lead_in);
+  physics.start(first, s.lead_in);
+
+  FrameLoop loop(o, character.mesh, s.frames);
+  MatrixX3f V;
+  for (int t = 0; t < s.frames; ++t) {
+    const auto frame_start = Clock::now();
+    const Transforms T = t == 0 ? first : player.frame(t);
+    physics.step(T, V);
+    s.mean.model += seconds_since(frame_start);
+    const auto out_start = Clock::now();
+    writer->append(V, T);
+    s.mean.output += seconds_since(out_start);
+    loop.done(t, V, info.apparel_mask, seconds_since(frame_start));
+  }
+  s.output = writer->finish();
+  loop.finish(s);
+  const double n = std::max(1, s.frames);
+  s.mean.model /= n, s.mean.output /= n;
+  s.total_seconds = seconds_since(job_start);
+  return s;
+}
+
+}  // namespace
+
 AnimateSummary animate(const AnimateOptions& o) {
+  AMT_CHECK(o.apparel.empty() || o.apparel == "learned" || o.apparel == "physics",
+            "--apparel: expected learned or physics, found '", o.apparel, "'");
+  if (o.apparel == "physics") return animate_with_physics(o);
   const auto job_start = Clock::now();
   AnimateSummary s;
   s.output = o.out;
+  s.apparel = "learned (the apparel module of " + o.model_dir + ")";
   AMT_CHECK(!o.out.empty() || !o.html_dir.empty(), "--out: expected an output (or --html DIR), found none");
   if (!o.out.empty()) output_kind(o.out);  // rejects .gltf / .obj names before any work
   // The viewer folder: refused before any work when it holds files amt did not write.
@@ -195,17 +352,9 @@ AnimateSummary animate(const AnimateOptions& o) {
   }
   const MotionPlayer player(source, character, o.playback);
   if (o.verbose) {
-    std::cerr << "animate: character " << character.name << " (" << character.mesh.num_vertices() << " vertices, "
-              << character.file_skeleton.num_joints() << " joints)\n";
-    if (!character.dataset.empty()) {
-      std::cerr << "animate: character skeleton is the dataset's canonical skeleton\n";
-    } else {
-      std::cerr << "animate: character " << character.rest.describe(character.file_skeleton.names) << "\n";
-    }
-    std::cerr << "animate: motion " << source.name << " (" << source.motion.num_frames() << " frames at "
-              << source.motion.fps << " fps)\n";
-    if (!source.mapping.empty()) std::cerr << "animate: motion " << source.mapping << "\n";
+    print_inputs(character, source);
     std::cerr << "animate: apparel mask from " << s.apparel_source << "\n";
+    std::cerr << "animate: apparel: " << s.apparel << "\n";
   }
   s.load_seconds = seconds_since(job_start);
 
@@ -231,16 +380,9 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.fps = player.fps();
   s.exact_motion = player.exact();
 
-  OutputInfo info;
-  info.character = character.name;
-  info.mesh = character.mesh;
-  info.skeleton = character.skeleton;
+  OutputInfo info = output_info(character, source, s);
   info.apparel_mask = session.apparel_mask();
   info.weights = output_weights(session.bound());
-  info.clip = source.dataset_clip.empty() ? source.name : source.dataset_clip;
-  info.motion = source.name;
-  info.frames = s.frames;
-  info.fps = s.fps;
   std::unique_ptr<FrameWriter> writer, html_prediction, html_skinning;
   if (!o.out.empty()) writer = open_frame_writer(o.out, info);
   MatrixXfR skinning_weights;
@@ -264,21 +406,8 @@ AnimateSummary animate(const AnimateOptions& o) {
     const at::Tensor lead = motion_lead_in(transforms_tensor(first), rest_joints, s.lead_in);
     for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
   }
-  std::vector<float> frame_seconds;
-  frame_seconds.reserve(size_t(s.frames));
   MatrixX3f V;
-  // Frames of the picture, and their renderings (four small images: memory stays flat).
-  std::vector<int> picture_frames;
-  std::vector<Image> pictures;
-  if (!o.picture.empty()) {
-    for (const double share : {0.2, 0.4, 0.6, 0.8}) picture_frames.push_back(int(share * (s.frames - 1)));
-  }
-  RenderOptions picture_options;
-  picture_options.width = 320;
-  picture_options.height = 400;
-  picture_options.world_height = 1.25f * float(character.mesh.V.col(1).maxCoeff() - character.mesh.V.col(1).minCoeff());
-  auto last_print = Clock::now();
-  const auto loop_start = Clock::now();
+  FrameLoop loop(o, character.mesh, s.frames);
   for (int t = 0; t < s.frames; ++t) {
     const Transforms T = t == 0 ? first : player.frame(t);
     PenetrationReport report;
@@ -291,23 +420,13 @@ AnimateSummary animate(const AnimateOptions& o) {
       html_skinning->append(skinned, T);
     }
     times.output = seconds_since(out_start);
-    for (const int k : picture_frames) {
-      if (k == t) pictures.push_back(render_character(TriMesh{V, character.mesh.F}, info.apparel_mask, picture_options));
-    }
-    frame_seconds.push_back(float(times.total()));
+    loop.done(t, V, info.apparel_mask, times.total());
     s.mean.model += times.model, s.mean.penetration += times.penetration, s.mean.output += times.output;
     s.before.inside += report.before.inside, s.before.total += report.before.total;
     s.before.depth_sum_cm += report.before.depth_sum_cm;
     s.after.inside += report.after.inside, s.after.total += report.after.total;
     s.after.depth_sum_cm += report.after.depth_sum_cm;
     s.carried += report.carried;
-    if (o.verbose && (seconds_since(last_print) > 1.0 || t + 1 == s.frames)) {
-      last_print = Clock::now();
-      const double elapsed = seconds_since(loop_start), rate = (t + 1) / std::max(elapsed, 1e-9);
-      std::fprintf(stderr, "\ranimate: %d/%d frames, %.1f frames/s, ETA %.0f s   ", t + 1, s.frames, rate,
-                   (s.frames - t - 1) / rate);
-      if (t + 1 == s.frames) std::fprintf(stderr, "\n");
-    }
   }
   const std::string written = writer ? writer->finish() : "";
   if (html_prediction) {
@@ -315,13 +434,10 @@ AnimateSummary animate(const AnimateOptions& o) {
     html_skinning->finish();
     s.html_dir = o.html_dir;
   }
-  if (!pictures.empty()) write_png(image_grid(pictures, int(pictures.size())), o.picture);
+  loop.finish(s);
   s.output = written;
   const double n = std::max(1, s.frames);
   s.mean.model /= n, s.mean.penetration /= n, s.mean.output /= n;
-  std::sort(frame_seconds.begin(), frame_seconds.end());
-  s.frame_median = frame_seconds[frame_seconds.size() / 2];
-  s.frame_p95 = frame_seconds[std::min(frame_seconds.size() - 1, size_t(std::ceil(0.95 * frame_seconds.size())) - 1)];
   s.total_seconds = seconds_since(job_start);
   return s;
 }
@@ -340,6 +456,15 @@ std::string describe(const AnimateSummary& s) {
   std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%, mask from ", s.vertices,
                 s.apparel_vertices, 100.0 * s.apparel_vertices / std::max(1, s.vertices));
   out << line << s.apparel_source << ")\n";
+  out << "apparel: " << s.apparel << "\n";
+  if (s.physics) {
+    std::snprintf(line, sizeof(line), "time per frame: median %.2f ms, p95 %.2f ms (physics and skinning %.2f, output %.2f ms mean)\n",
+                  1e3 * s.frame_median, 1e3 * s.frame_p95, 1e3 * s.mean.model, 1e3 * s.mean.output);
+    out << line;
+    std::snprintf(line, sizeof(line), "total: %.1f s\n", s.total_seconds);
+    out << line;
+    return out.str();
+  }
   std::snprintf(line, sizeof(line), "bind: %.2f s (%s%s)\n", s.bind_seconds,
                 s.bind_cache_hit      ? "cache hit: "
                 : s.bind_path.empty() ? "no cache"

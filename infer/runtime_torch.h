@@ -91,6 +91,9 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 ///               viewer_dir is the repository's viewer/ its page is copied from
 ///   apparel_mask  where the apparel mask comes from: "model" or empty (the segmenter), "rig" (the character's
 ///               own rig: RuntimeCharacter::rig_apparel_mask), or a mask file (read_apparel_mask)
+///   apparel     what moves the apparel: "learned" or empty (the apparel module of the model), or "physics" (a PMX
+///               model's own rigid bodies and joints, infer/pmx_physics_player.h: no network, no bind; the whole
+///               mesh skinned by the model's own rig; not with html_dir)
 struct AnimateOptions {
   CharacterSpec character;
   MotionSpec motion;
@@ -98,6 +101,7 @@ struct AnimateOptions {
   std::string out;
   std::string bind_path;
   std::string apparel_mask;
+  std::string apparel = "learned";
   std::string html_dir, viewer_dir;
   PlaybackOptions playback;
   bool resolve_penetration = true;
@@ -118,6 +122,10 @@ struct AnimateSummary {
   int vertices = 0, apparel_vertices = 0;
   /// Where the apparel mask came from ("the segmenter", "the rig: ...", "the file ...").
   std::string apparel_source;
+  /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
+  std::string apparel;
+  /// True for --apparel physics: no bind, no penetration resolution.
+  bool physics = false;
   std::string bind_path;
   bool bind_cache_hit = false;
   double bind_seconds = 0, load_seconds = 0, total_seconds = 0;

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,7 @@
 #include "data_tools/builder/apparel_simulation.h"
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/builder/body_generator.h"
+#include "data_tools/builder/pmx_dataset.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
@@ -48,6 +50,7 @@ constexpr uint64_t kMotionStream = 0x6d6f74696f6eULL;     // procedural motions
 constexpr uint64_t kCharacterSplitStream = 0x63737074ULL;  // held-out characters
 constexpr uint64_t kClipSplitStream = 0x6b737074ULL;       // held-out clips
 constexpr uint64_t kCharacterStream = 0x63686172ULL;       // per-character seeds
+constexpr uint64_t kPmxSplitStream = 0x706d7873ULL;        // held-out PMX models
 
 using Clock = std::chrono::steady_clock;
 
@@ -67,11 +70,12 @@ std::string duration_text(double seconds) {
   return text;
 }
 
-// FNV-1a 64 of a file's bytes, as 16 hex digits (identifies the BVH files a dataset was built from).
-std::string file_hash(const std::string& path) {
-  check_input_file(path, "a BVH motion");
+// FNV-1a 64 of a file's bytes, as 16 hex digits (identifies the BVH and PMX files a dataset was built from).
+// `what` says what the file should be, for messages ("a BVH motion").
+std::string file_hash(const std::string& path, const char* what) {
+  check_input_file(path, what);
   std::ifstream in(path, std::ios::binary);
-  AMT_CHECK(in.good(), path, ": cannot read (expected a readable BVH file)");
+  AMT_CHECK(in.good(), path, ": cannot read (expected ", what, ")");
   uint64_t h = 0xcbf29ce484222325ULL;
   char buffer[1 << 16];
   while (in) {
@@ -117,20 +121,33 @@ json make_manifest(const DatasetBuildOptions& o, const DatasetPlan& plan) {
                           {"test_clip_every", o.test_clip_every},
                           {"clips_per_commit", o.clips_per_commit},
                           {"apparel", apparel_settings(o.apparel)}};
+  if (!o.pmx.empty()) manifest["settings"]["pmx_metres_per_unit"] = o.pmx_metres_per_unit;
   json bvh = json::array();
   if (!o.motions.empty()) {
     for (const std::string& path : list_bvh_files(o.motions)) {
-      bvh.push_back({{"file", fs::path(path).filename().string()}, {"fnv1a64", file_hash(path)}});
+      bvh.push_back({{"file", fs::path(path).filename().string()}, {"fnv1a64", file_hash(path, "a BVH motion")}});
     }
   }
   manifest["bvh_files"] = bvh;
+  // The PMX models by name and checksum: a rerun with other files (or edited ones) is refused. Only written when
+  // there are some, so that procedural builds keep their manifests.
+  json pmx = json::array();
+  for (const PlannedCharacter& c : plan.characters) {
+    if (c.pmx.empty()) continue;
+    pmx.push_back({{"character", c.name},
+                   {"file", fs::path(c.pmx).filename().string()},
+                   {"fnv1a64", file_hash(c.pmx, "a PMX model")}});
+  }
+  if (!pmx.empty()) manifest["pmx_files"] = pmx;
   json characters = json::array();
   for (const PlannedCharacter& c : plan.characters) {
-    characters.push_back({{"name", c.name},
-                          {"shard", fs::path(shard_path("", c.name)).filename().string()},
-                          {"split", c.split},
-                          {"body_seed", c.body_seed},
-                          {"apparel_seed", c.apparel_seed}});
+    json entry = {{"name", c.name},
+                  {"shard", fs::path(shard_path("", c.name)).filename().string()},
+                  {"split", c.split},
+                  {"body_seed", c.body_seed},
+                  {"apparel_seed", c.apparel_seed}};
+    if (!c.pmx.empty()) entry["pmx"] = fs::path(c.pmx).filename().string();
+    characters.push_back(entry);
   }
   manifest["characters"] = characters;
   json clips = json::array();
@@ -227,8 +244,10 @@ void check_or_write_manifest(const std::string& dir, const json& manifest) {
     const json existing = read_manifest_file(path);
     // Settings first: they explain the other differences (seeds, clip lists).
     std::string difference;
-    for (const char* key : {"settings", "bvh_files", "clips", "characters"}) {
-      if (difference.empty()) difference = first_difference(manifest[key], existing.value(key, json()), std::string(key) + ".");
+    for (const char* key : {"settings", "bvh_files", "pmx_files", "clips", "characters"}) {
+      const json none = std::string(key) == "pmx_files" ? json::array() : json();
+      if (difference.empty())
+        difference = first_difference(manifest.value(key, none), existing.value(key, none), std::string(key) + ".");
     }
     AMT_CHECK(difference.empty(), dir, ": the folder holds a dataset built with other settings (", difference,
               "); use another --out or the same settings");
@@ -297,6 +316,57 @@ json character_record(const PlannedCharacter& planned, const DressedCharacter& d
           {"bones", dressed.rig.num_bones()},
           {"apparel_bodies", dressed.num_apparel_bodies()},
           {"pieces", pieces}};
+}
+
+// The build record of a PMX character, in the procedural record's format (dataset_quality.h reads both): figures
+// measured on the model, one piece per physics chain (pmx_dataset_character), the file and its repairs.
+json pmx_character_record(const PlannedCharacter& planned, const PmxCharacter& pmx, const PmxDatasetCharacter& d) {
+  const MatrixX3f& V = d.data.mesh.V;
+  const MatrixX3f& J = d.data.skeleton.rest_joints;
+  const double floor = V.col(1).minCoeff(), height = V.col(1).maxCoeff() - floor;
+  const Eigen::Vector3f arm = J.row(kLeftElbow) - J.row(kLeftShoulder);
+  const double pi = 3.14159265358979;
+  const json params = {{"height", height},
+                       {"head_ratio", height > 0 ? (V.col(1).maxCoeff() - J(kNeck, 1)) / height : 0.0},
+                       {"leg_ratio", height > 0 ? (J(kLeftHip, 1) - floor) / height : 0.0},
+                       {"arm_angle_deg", std::atan2(-arm.y(), std::hypot(arm.x(), arm.z())) * 180.0 / pi}};
+  json pieces = json::array();
+  for (const PmxApparelPiece& piece : d.pieces) {
+    pieces.push_back({{"kind", "pmx_chain"},
+                      {"connected_to_body", false},
+                      {"attachment_joint", piece.attachment_joint},
+                      {"attachment_joint_name", canonical_joint_names().at(piece.attachment_joint)},
+                      {"root_bone", pmx.file_skeleton.names.at(piece.root_bone)},
+                      {"chains", 1},
+                      {"chain_length", piece.chain_length},
+                      {"first_vertex", piece.first_vertex},
+                      {"end_vertex", piece.end_vertex}});
+  }
+  int apparel_vertices = 0;
+  for (const uint8_t m : d.data.apparel_mask) apparel_vertices += m;
+  return {{"format", kRecordFormat},
+          {"version", kRecordVersion},
+          {"name", planned.name},
+          {"split", planned.split},
+          {"body_seed", planned.body_seed},
+          {"apparel_seed", planned.apparel_seed},
+          {"params", params},
+          {"vertices", d.data.mesh.num_vertices()},
+          {"faces", d.data.mesh.num_faces()},
+          {"body_vertices", d.body_vertices},
+          {"body_faces", d.body_faces},
+          {"apparel_vertices", apparel_vertices},
+          {"bones", pmx.num_bones()},
+          {"apparel_bodies", pmx.simulated_bodies},
+          {"pieces", pieces},
+          {"pmx",
+           {{"file", fs::path(planned.pmx).filename().string()},
+            {"model_name", pmx.model.header.name},
+            {"units", "simulated in PMX units, stored in metres"},
+            {"metres_per_unit", pmx.scale},
+            {"rigid_bodies", pmx.model.rigid_bodies.size()},
+            {"joints", pmx.model.joints.size()},
+            {"repairs", pmx.warnings}}}};
 }
 
 // --- Simulation
@@ -376,8 +446,11 @@ ShardSpec parse_shard(const std::string& text) {
 
 void validate_build_options(const DatasetBuildOptions& o) {
   AMT_CHECK(!o.out.empty(), "dataset build: --out: expected an output folder, found none");
-  AMT_CHECK(o.characters >= 1 && o.characters <= 100000, "dataset build: --characters: expected 1 to 100000, found ",
-            o.characters);
+  const int least = o.pmx.empty() ? 1 : 0;
+  AMT_CHECK(o.characters >= least && o.characters <= 100000, "dataset build: --characters: expected ", least,
+            " to 100000", o.pmx.empty() ? " (or PMX models with --pmx)" : "", ", found ", o.characters);
+  AMT_CHECK(std::isfinite(o.pmx_metres_per_unit) && o.pmx_metres_per_unit > 0,
+            "dataset build: --pmx-metres-per-unit: expected a finite length > 0, found ", o.pmx_metres_per_unit);
   AMT_CHECK(o.vertices >= kMinBodyVertices && o.vertices <= kMaxBodyVertices, "dataset build: --vertices: expected ",
             kMinBodyVertices, " to ", kMaxBodyVertices, " vertices per body, found ", o.vertices);
   AMT_CHECK(o.procedural >= 0 && o.procedural <= 100000, "dataset build: --procedural: expected 0 to 100000, found ",
@@ -439,10 +512,45 @@ DatasetPlan plan_dataset(const DatasetBuildOptions& options, std::vector<MotionC
     const uint64_t base = derive_seed(derive_seed(options.seed, kCharacterStream), static_cast<uint64_t>(c));
     plan.characters.push_back({name, derive_seed(base, 0), derive_seed(base, 1), test_characters[c] ? "test" : "train"});
   }
+  const std::vector<std::string> models = list_pmx_files(options.pmx);
+  const std::vector<bool> test_models = held_out_set(static_cast<int>(models.size()), options.test_character_every,
+                                                     derive_seed(options.seed, kPmxSplitStream));
+  for (size_t m = 0; m < models.size(); ++m) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "pmx-%04d", static_cast<int>(m));
+    plan.characters.push_back({name, 0, 0, test_models[m] ? "test" : "train", models[m]});
+  }
   plan.clip_held_out = held_out_set(static_cast<int>(clips.size()), options.test_clip_every,
                                     derive_seed(options.seed, kClipSplitStream));
   plan.clips = std::move(clips);
   return plan;
+}
+
+std::vector<std::string> list_pmx_files(const std::vector<std::string>& paths) {
+  std::vector<std::string> files;
+  const auto is_pmx = [](const fs::path& p) {
+    std::string e = p.extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+    return e == ".pmx";
+  };
+  for (const std::string& path : paths) {
+    std::error_code error;
+    AMT_CHECK(fs::exists(path, error), path, ": --pmx: expected a PMX file or a folder of them, found nothing there");
+    if (fs::is_directory(path, error)) {
+      std::vector<std::string> found;
+      for (fs::directory_iterator it(path, error), end; !error && it != end; it.increment(error)) {
+        if (it->is_regular_file() && is_pmx(it->path())) found.push_back(it->path().string());
+      }
+      AMT_CHECK(!found.empty(), path, ": --pmx: expected a folder with *.pmx files, found none");
+      std::sort(found.begin(), found.end());
+      files.insert(files.end(), found.begin(), found.end());
+    } else {
+      AMT_CHECK(is_pmx(path), path, ": --pmx: expected a .pmx file, found extension '",
+                fs::path(path).extension().string(), "'");
+      files.push_back(path);
+    }
+  }
+  return files;
 }
 
 BuildManifest read_build_manifest(const std::string& dir) {
@@ -510,7 +618,7 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
             error.message());
   check_or_write_manifest(o.out, manifest);
 
-  const int C = o.characters, M = static_cast<int>(plan.clips.size());
+  const int C = static_cast<int>(plan.characters.size()), M = static_cast<int>(plan.clips.size());
   int64_t frames_per_character = 0;
   for (const MotionClip& clip : plan.clips) frames_per_character += clip.motion.num_frames();
   std::vector<int> mine;
@@ -558,28 +666,52 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
     report.clips_skipped += done;
     for (int k = 0; k < done; ++k) frames_to_do -= plan.clips[k].motion.num_frames();
 
+    // A procedural character (generated and dressed) or a PMX model (read and repaired; its repairs are printed).
     Clock::time_point t0 = Clock::now();
-    const GeneratedBody body = generate_body(sample_body_params(planned.body_seed), o.vertices);
-    report.body_seconds += seconds_since(t0);
-    t0 = Clock::now();
-    const DressedCharacter dressed = dress_character(body, planned.apparel_seed, o.apparel);
-    report.dress_seconds += seconds_since(t0);
-    apparel_bodies += dressed.num_apparel_bodies();
+    std::optional<GeneratedBody> body;
+    std::optional<DressedCharacter> dressed;
+    std::optional<PmxCharacter> pmx;
+    if (planned.pmx.empty()) {
+      body.emplace(generate_body(sample_body_params(planned.body_seed), o.vertices));
+      report.body_seconds += seconds_since(t0);
+      t0 = Clock::now();
+      dressed.emplace(dress_character(*body, planned.apparel_seed, o.apparel));
+      report.dress_seconds += seconds_since(t0);
+      apparel_bodies += dressed->num_apparel_bodies();
+    } else {
+      pmx.emplace(load_pmx_character(planned.pmx, std::nullopt, o.pmx_metres_per_unit));
+      report.body_seconds += seconds_since(t0);
+      apparel_bodies += pmx->simulated_bodies;
+      if (o.progress) {
+        *o.progress << "build: " << planned.name << " <- " << planned.pmx << ": " << pmx->mesh.num_vertices()
+                    << " vertices, " << pmx->num_bones() << " bones, " << pmx->model.rigid_bodies.size()
+                    << " rigid bodies (" << pmx->simulated_bodies << " simulated), " << pmx->model.joints.size()
+                    << " joints\n";
+        for (const std::string& warning : pmx->warnings) *o.progress << "build: warning: " << warning << "\n";
+      }
+    }
+    const Skeleton& skeleton = pmx ? pmx->skeleton() : body->skeleton;
+    PmxSimulationOptions pmx_options;
+    pmx_options.fps = o.fps;
+    pmx_options.physics_step = o.physics_step;
+    pmx_options.solver_iterations = o.solver_iterations;
+    pmx_options.settle_seconds = o.settle_seconds;
 
     int threads = 1;
 #ifdef _OPENMP
     threads = std::max(1, omp_get_max_threads());
 #endif
     std::vector<std::unique_ptr<ApparelSimulator>> simulators(threads);
+    std::vector<std::unique_ptr<PmxRigSimulator>> pmx_simulators(threads);
     for (int batch = done; batch < M; batch += o.clips_per_commit) {
       const int end = std::min(M, batch + o.clips_per_commit);
       // Motions on the character (sequential: cheap), then the batch's clips in parallel.
       t0 = Clock::now();
       std::vector<SimulatedClip> simulated(end - batch);
       for (int k = batch; k < end; ++k) {
-        const Motion motion = clip_on_character(plan.clips[k], body.skeleton, o.blend_seconds);
+        const Motion motion = clip_on_character(plan.clips[k], skeleton, o.blend_seconds);
         simulated[k - batch].frames = motion.num_frames();
-        simulated[k - batch].joints = forward_kinematics(body.skeleton, motion);
+        simulated[k - batch].joints = forward_kinematics(skeleton, motion);
       }
       report.motion_seconds += seconds_since(t0);
       t0 = Clock::now();
@@ -592,7 +724,8 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
           thread = omp_get_thread_num();
 #endif
           SimulatedClip& clip = simulated[i];
-          clip.rig = simulate_clip(dressed, clip.joints, clip.frames, o, simulators[thread]);
+          clip.rig = pmx ? simulate_pmx_clip(*pmx, clip.joints, clip.frames, pmx_options, pmx_simulators[thread])
+                         : simulate_clip(*dressed, clip.joints, clip.frames, o, simulators[thread]);
         } catch (...) {
 #pragma omp critical(amt_dataset_build_failure)
           if (!failure) failure = std::current_exception();
@@ -608,9 +741,10 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
         writer.emplace(DatasetWriter::append(part));
       } else {
         writer.emplace(part, o.fps, canonical_joint_names());
-        writer->add_character(dressed.character_data(planned.name, planned.split));
+        writer->add_character(pmx ? pmx_dataset_character(*pmx, planned.name, planned.split).data
+                                  : dressed->character_data(planned.name, planned.split));
       }
-      const int B = dressed.rig.num_bones(), J = kCanonicalJointCount;
+      const int B = pmx ? pmx->num_bones() : dressed->rig.num_bones(), J = kCanonicalJointCount;
       for (int k = batch; k < end; ++k) {
         const SimulatedClip& clip = simulated[k - batch];
         ClipInfo info;
@@ -658,7 +792,9 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
 
     // Finish the character: its record, then the shard appears under its final name.
     t0 = Clock::now();
-    write_file_atomically(record_path(o.out, planned.name), character_record(planned, dressed).dump(2) + "\n");
+    const json record = pmx ? pmx_character_record(planned, *pmx, pmx_dataset_character(*pmx, planned.name, planned.split))
+                            : character_record(planned, *dressed);
+    write_file_atomically(record_path(o.out, planned.name), record.dump(2) + "\n");
     std::error_code rename_error;
     fs::rename(part, shard, rename_error);
     AMT_CHECK(!rename_error, shard, ": expected to rename ", part, " onto it, found error: ", rename_error.message());

@@ -35,6 +35,7 @@
 #include "data_tools/builder/apparel_simulation.h"
 #include "data_tools/builder/physics.h"
 #include "data_tools/builder/motion_library.h"
+#include "data_tools/formats/pmx_import.h"
 
 namespace amt {
 
@@ -56,8 +57,15 @@ struct DatasetBuildOptions {
   std::string out;
   /// Base seed of everything: character bodies and apparel, splits, procedural motions.
   uint64_t seed = 1;
-  /// Number of characters C (>= 1).
+  /// Number of procedural characters C (>= 0; >= 1 when no PMX model is given).
   int characters = 32;
+  /// PMX models (files, or folders whose *.pmx files are all taken, sorted by name, not recursive): each becomes a
+  /// character simulated with its own rigid bodies and joints (data_tools/builder/pmx_dataset.h), after the C
+  /// procedural ones.
+  std::vector<std::string> pmx;
+  /// Metres per PMX unit of those models (finite, > 0): MMD's 0.08 by default. The physics runs in the models' own
+  /// units; the shards store metres.
+  float pmx_metres_per_unit = kPmxMetresPerUnit;
   /// Folder of BVH files (every *.bvh); empty for procedural motions only.
   std::string motions;
   /// Number of procedural motion clips (>= 0).
@@ -102,13 +110,15 @@ void validate_build_options(const DatasetBuildOptions& options);
 
 /// One character of the dataset.
 struct PlannedCharacter {
-  /// "character-0007": the group name in its shard and the shard's file stem.
+  /// "character-0007" (procedural) or "pmx-0002" (a PMX model): the group name in its shard and the shard's file stem.
   std::string name;
-  /// Seeds of sample_body_params and dress_character.
+  /// Seeds of sample_body_params and dress_character (0 for a PMX model).
   uint64_t body_seed = 0;
   uint64_t apparel_seed = 0;
   /// "train" or "test".
   std::string split;
+  /// The PMX model's path, empty for a procedural character.
+  std::string pmx;
 };
 
 /// What a build makes: characters, library clips and their splits. A pure function of the options (and the BVH
@@ -125,8 +135,14 @@ struct DatasetPlan {
   std::string clip_name(int c, int k) const;
 };
 
-/// The C characters (names, seeds, splits) and the library clips with their held-out flags.
+/// The C procedural characters (names, seeds, splits), then one character per PMX model (list_pmx_files of
+/// options.pmx; their own held-out set, so that adding models leaves the procedural splits alone), and the library
+/// clips with their held-out flags.
 DatasetPlan plan_dataset(const DatasetBuildOptions& options, std::vector<MotionClip> clips);
+
+/// The PMX files of `paths`: a file as given, a folder's *.pmx files (any case) sorted by name. Throws amt::Error
+/// naming the path when it does not exist, is a folder without a PMX file, or a file without the .pmx extension.
+std::vector<std::string> list_pmx_files(const std::vector<std::string>& paths);
 
 /// Indices [0, n) of which `held_out` are chosen, from a seeded Fisher-Yates shuffle: the held-out set.
 /// held_out = n >= 2 ? max(1, round(n / every)) : 0. Deterministic on every platform.

@@ -6,7 +6,7 @@
 
 namespace amt {
 
-std::vector<uint8_t> pmx_physics_apparel_mask(const PmxModel& model, int* drivers) {
+std::vector<uint8_t> pmx_physics_driven_bones(const PmxModel& model, int* drivers) {
   const int B = static_cast<int>(model.bones.size());
   // 1: a simulated body drives the bone; -1: a body that follows its bone holds it; 0: no body names it.
   std::vector<int> held(static_cast<size_t>(B), 0);
@@ -41,6 +41,12 @@ std::vector<uint8_t> pmx_physics_apparel_mask(const PmxModel& model, int* driver
     }
     for (const int p : path) driven[p] = held[p] != 0 ? (held[p] > 0 ? 1 : 0) : result;
   }
+  return std::vector<uint8_t>(driven.begin(), driven.end());
+}
+
+std::vector<uint8_t> pmx_physics_apparel_mask(const PmxModel& model, int* drivers) {
+  const int B = static_cast<int>(model.bones.size());
+  const std::vector<uint8_t> driven = pmx_physics_driven_bones(model, drivers);
   const int N = model.vertices.size();
   std::vector<uint8_t> mask(static_cast<size_t>(N), 0);
   for (int i = 0; i < N; ++i) {

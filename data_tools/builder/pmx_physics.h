@@ -17,6 +17,10 @@ namespace amt {
 /// the spring 6-DOF of PMX 2.0, or a rig that fails validate_physics_rig (e.g. a simulated body of mass 0).
 PhysicsRig pmx_physics_rig(const PmxModel& model);
 
+/// (B) 1 for every physics-driven bone of `model` (as pmx_physics_apparel_mask defines them), else 0. `drivers`,
+/// when given, receives the number of simulated bodies that name a bone. Any frame; never throws on a valid model.
+std::vector<uint8_t> pmx_physics_driven_bones(const PmxModel& model, int* drivers = nullptr);
+
 /// The apparel a PMX model's physics rig implies (`amt animate --apparel-mask rig`, the PMX dataset's ground
 /// truth): 1 for every vertex with a non-zero weight on a physics-driven bone, else 0. A bone is physics-driven
 /// when a simulated rigid body (PmxPhysicsMode kDynamic or kDynamicWithBonePosition) names it, or when it hangs

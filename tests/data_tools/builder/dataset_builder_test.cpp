@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/pmx_export.h"
+#include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/data_tools/builder/tiny_build.h"
 #include "tests/test_support.h"
 
@@ -324,6 +326,30 @@ TEST(DatasetBuildCommand, DefaultMotionsAreFoundAboveTheProgramOrInTheCurrentFol
   help = test::run_command(in_elsewhere + "'" + program.string() + "' dataset build --help");
   EXPECT_NE(help.out.find("(here: " + (elsewhere / "data" / "mocap" / "cmu").string() + ")"), std::string::npos)
       << help.out;
+}
+
+// PMX models beside procedural characters: planned after them, resumed like them, the same bytes in the end.
+TEST(DatasetBuilderPmx, MixedWithProceduralCharactersResumesToTheSameBytes) {
+  const fs::path root = test::temp_dir("dataset_builder_pmx");
+  const std::string model = (root / "humanoid.pmx").string();
+  write_pmx(test::pmx_humanoid(), model);
+  DatasetBuildOptions o = tiny_build_options(root / "reference", 1);
+  o.pmx = {model};
+  const DatasetBuildReport reference = build_dataset(o);
+  EXPECT_EQ(reference.characters_built, 2);
+  EXPECT_EQ(names_of(folder_bytes(root / "reference")),
+            (std::vector<std::string>{"character-0000.h5", "character-0000.json", "manifest.json", "pmx-0000.h5",
+                                      "pmx-0000.json"}));
+
+  o.out = (root / "resumed").string();
+  o.stop_after_clips = 4;  // the procedural character's 3 clips, then the model's first clip, lost uncommitted
+  EXPECT_TRUE(build_dataset(o).interrupted);
+  EXPECT_FALSE(fs::exists(root / "resumed" / "pmx-0000.part"));
+  o.stop_after_clips = -1;
+  const DatasetBuildReport resumed = build_dataset(o);
+  EXPECT_EQ(resumed.characters_skipped, 1);
+  EXPECT_EQ(resumed.clips_built, 3);
+  EXPECT_EQ(folder_bytes(root / "resumed"), folder_bytes(root / "reference"));
 }
 
 }  // namespace

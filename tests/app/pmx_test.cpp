@@ -1,0 +1,122 @@
+// PMX models on the command line: `amt dataset build --pmx` on the MMD-style test humanoid, then `amt dataset
+// check` and `amt dataset info` on the result, and `amt animate --apparel physics` writing a GLB from the model's
+// own physics, with its one-line errors (a character without a physics rig, a PMX without simulated bodies).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/pmx_export.h"
+#include "tests/app/amt_cli.h"
+#include "tests/data_tools/builder/pmx_humanoid.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string cmu_walk() {
+  return std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh";
+}
+
+TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
+  const fs::path dir = test::temp_dir("pmx_dataset_cli");
+  fs::create_directories(dir / "models");
+  write_pmx(test::pmx_humanoid(), (dir / "models" / "humanoid.pmx").string());
+  const test::CommandResult built =
+      test::expect_success(dir, {"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "",
+                                 "--procedural", "2", "--frames", "12", "--threads", "1"});
+  EXPECT_EQ(built.out, "wrote data\n");
+  EXPECT_NE(built.err.find("pmx-0000 <- models/humanoid.pmx: 168 vertices, 28 bones, 5 rigid bodies (3 simulated)"),
+            std::string::npos)
+      << built.err;
+  EXPECT_NE(built.err.find("built 1 characters (0 already done), 2 clips"), std::string::npos) << built.err;
+  for (const char* file : {"manifest.json", "pmx-0000.h5", "pmx-0000.json"})
+    EXPECT_TRUE(fs::is_regular_file(dir / "data" / file)) << file;
+  const DatasetReader reader((dir / "data" / "pmx-0000.h5").string());
+  const CharacterData character = reader.read_character("pmx-0000");
+  EXPECT_EQ(character.rig->num_bones(), 28);
+  int apparel = 0;
+  for (const uint8_t m : character.apparel_mask) apparel += m;
+  EXPECT_EQ(apparel, 24);  // the three hair boxes
+
+  const test::CommandResult info = test::expect_success(dir, {"dataset", "info", "data", "--threads", "1"});
+  EXPECT_NE(info.out.find("totals: 1 character"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("missing, damaged or not in the manifest: none"), std::string::npos) << info.out;
+
+  // check runs its gates on the PMX shard (whether the hair's lag is in the procedural bounds is a figure, not
+  // this test's business): every gate line is printed and the report written.
+  const test::CommandResult check = test::run_amt(dir, {"dataset", "check", "data", "--threads", "1"});
+  for (const char* gate : {"apparel lag", "no NaN: 0 non-finite", "no explosion", "no jump", "penetration"})
+    EXPECT_NE(check.out.find(gate), std::string::npos) << gate << " not in: " << check.out << check.err;
+  EXPECT_NE(check.out.find("PASS no NaN"), std::string::npos) << check.out;
+  EXPECT_NE(check.out.find("PASS no explosion"), std::string::npos) << check.out;
+  EXPECT_TRUE(fs::is_regular_file(dir / "data" / "quality" / "report.md"));
+
+  // A model with broken physics is repaired with a warning line naming the file, the body and the field.
+  PmxModel broken = test::pmx_humanoid();
+  broken.rigid_bodies[3].mass = 0;
+  fs::create_directories(dir / "broken");
+  write_pmx(broken, (dir / "broken" / "broken.pmx").string());
+  const test::CommandResult repaired =
+      test::expect_success(dir, {"dataset", "build", "--out", "repaired", "--pmx", "broken/broken.pmx", "--motions", "",
+                                 "--procedural", "1", "--frames", "4", "--threads", "1"});
+  EXPECT_NE(repaired.err.find("build: warning: broken/broken.pmx: rigid_bodies[3] '髪2': mass: expected a positive "
+                              "mass on a simulated body (mode 1), found 0; it follows its bone (mode 0)"),
+            std::string::npos)
+      << repaired.err;
+
+  // A rerun naming another model in the folder's place is refused, writing nothing.
+  PmxModel other = test::pmx_humanoid();
+  other.rigid_bodies[2].mass = 3.0f;
+  write_pmx(other, (dir / "models" / "humanoid.pmx").string());
+  test::expect_errors_writing_nothing(
+      dir, {{{"dataset", "build", "--out", "data", "--pmx", "models", "--motions", "", "--procedural", "2", "--frames",
+              "12"},
+             {"data: the folder holds a dataset built with other settings", "pmx_files.0.fnv1a64"}},
+            {{"dataset", "build", "--out", "other", "--pmx", "nowhere.pmx", "--motions", ""},
+             {"nowhere.pmx: --pmx: expected a PMX file or a folder of them"}}});
+}
+
+TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
+  const fs::path dir = test::temp_dir("pmx_animate_physics");
+  write_pmx(test::pmx_humanoid(), (dir / "humanoid.pmx").string());
+  const test::CommandResult run =
+      test::expect_success(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel",
+                                 "physics", "--frames", "6", "--out", "walk.glb", "--threads", "1"});
+  EXPECT_EQ(run.out.rfind("wrote walk.glb", 0), 0u) << run.out;
+  EXPECT_NE(run.out.find("apparel: physics (the PMX model's own 3 simulated rigid bodies and 3 joints"),
+            std::string::npos)
+      << run.out;
+  EXPECT_NE(run.err.find("animate: apparel: physics"), std::string::npos) << run.err;
+  // (The Khronos validator on such a GLB: tests/infer/pmx_physics_player_test.cpp.)
+  const GltfVertexAnimation frames = gltf_vertex_animation(read_gltf((dir / "walk.glb").string()), "", 30.0f);
+  ASSERT_EQ(frames.frames.size(), 6u);
+  for (const MatrixX3f& V : frames.frames) {
+    EXPECT_TRUE(V.allFinite());
+    EXPECT_EQ(V.rows(), 168);
+  }
+  EXPECT_FALSE(fs::exists(dir / "walk.bind"));  // no network, no bind
+
+  // Errors: a character without a physics rig of its own, and a PMX whose bodies all follow their bones.
+  PmxModel still = test::pmx_humanoid("still.pmx");
+  for (PmxRigidBody& r : still.rigid_bodies) r.mode = PmxPhysicsMode::kFollowBone;
+  write_pmx(still, (dir / "still.pmx").string());
+  test::expect_errors_writing_nothing(
+      dir,
+      {{{"animate", "--character", "generated:3", "--motion", cmu_walk(), "--apparel", "physics", "--out", "g.glb"},
+        {"generated:3: --apparel physics: expected a PMX model with rigid bodies", "use --apparel learned"}},
+       {{"animate", "--character", "still.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--out", "s.glb"},
+        {"still.pmx: --apparel physics: expected a PMX model with simulated rigid bodies", "none simulated"}},
+       {{"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(), "--apparel", "physics", "--html", "v"},
+        {"--html: expected no viewer folder with --apparel physics"}}});
+  test::expect_one_line_error(test::run_amt(dir, {"animate", "--character", "humanoid.pmx", "--motion", cmu_walk(),
+                                                  "--apparel", "cloth", "--out", "c.glb"}),
+                              {"--apparel"}, 2);
+}
+
+}  // namespace
+}  // namespace amt
