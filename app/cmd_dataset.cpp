@@ -123,6 +123,10 @@ void add_build_command(CLI::App& dataset) {
   build->add_option("--apparel-stiffness", options->apparel.stiffness_scale,
                     "Scale on the angular spring stiffness of apparel joints (ApparelOptions::stiffness_scale)")
       ->capture_default_str();
+  build->add_option("--apparel-variation", options->apparel.physics_variation,
+                    "Per-piece spread of apparel mass, damping and stiffness: factors log-uniform in [1/(1+v), 1+v] "
+                    "(ApparelOptions::physics_variation; 0 = every piece of a kind alike)")
+      ->capture_default_str();
   build->add_option("--physics-step", options->physics_step, "Physics substep in seconds")->capture_default_str();
   build->add_option("--solver-iterations", options->solver_iterations, "Constraint solver iterations per substep")
       ->capture_default_str();

@@ -1092,6 +1092,8 @@ void validate_apparel_options(const ApparelOptions& o) {
             "apparel options: stiffness_scale: expected a positive value, found ", o.stiffness_scale);
   AMT_CHECK(std::isfinite(o.damping_scale) && o.damping_scale > 0,
             "apparel options: damping_scale: expected a positive value, found ", o.damping_scale);
+  AMT_CHECK(std::isfinite(o.physics_variation) && o.physics_variation >= 0 && o.physics_variation <= 4,
+            "apparel options: physics_variation: expected a value in [0, 4], found ", o.physics_variation);
 }
 
 std::vector<PhysicsBody> body_collision_capsules(const GeneratedBody& body, float margin,
@@ -1205,6 +1207,23 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
       if (total_bodies() <= options.max_bodies) break;
     }
     if (!trimmed) break;
+  }
+
+  // Per-piece physics (ApparelOptions::physics_variation): a stream of its own, so that the layout above and
+  // every dressing with the option off stay as they were.
+  if (options.physics_variation > 0) {
+    std::seed_seq physics_seq{static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), 0x70687973u};
+    std::mt19937 physics_rng(physics_seq);
+    const float spread = std::log1p(options.physics_variation);
+    const auto factor = [&] { return std::exp(uniform(physics_rng, -spread, spread)); };
+    for (PieceLayout& piece : pieces) {
+      ChainPhysics& ph = piece.physics;
+      ph.mass *= factor();
+      const float damping = factor();
+      ph.linear_damping = std::min(ph.linear_damping * damping, 1.0f);
+      ph.angular_damping = std::min(ph.angular_damping * damping, 1.0f);
+      ph.stiffness *= factor();
+    }
   }
 
   DressedCharacter out;

@@ -95,11 +95,14 @@ std::string file_hash(const std::string& path, const char* what) {
 json apparel_settings(const ApparelOptions& a) {
   json kinds = json::array();
   for (const ApparelKind kind : a.kinds) kinds.push_back(apparel_kind_name(kind));
-  return {{"min_pieces", a.min_pieces},         {"max_pieces", a.max_pieces},
+  json settings = {{"min_pieces", a.min_pieces},         {"max_pieces", a.max_pieces},
           {"kinds", kinds},                     {"vertex_fraction", a.vertex_fraction},
           {"max_bodies", a.max_bodies},         {"clearance", a.clearance},
           {"capsule_margin", a.capsule_margin}, {"stiffness_scale", a.stiffness_scale},
           {"damping_scale", a.damping_scale}};
+  // Written only when set, so that the manifests of datasets built before the option still match.
+  if (a.physics_variation > 0) settings["physics_variation"] = a.physics_variation;
+  return settings;
 }
 
 // Everything that defines the dataset (not the shard, thread count, paths or progress of a run).
@@ -510,7 +513,8 @@ DatasetPlan plan_dataset(const DatasetBuildOptions& options, std::vector<MotionC
     char name[32];
     std::snprintf(name, sizeof(name), "character-%04d", c);
     const uint64_t base = derive_seed(derive_seed(options.seed, kCharacterStream), static_cast<uint64_t>(c));
-    plan.characters.push_back({name, derive_seed(base, 0), derive_seed(base, 1), test_characters[c] ? "test" : "train"});
+    plan.characters.push_back(
+        {name, derive_seed(base, 0), derive_seed(base, 1), test_characters[c] ? "test" : "train", std::string()});
   }
   const std::vector<std::string> models = list_pmx_files(options.pmx);
   const std::vector<bool> test_models = held_out_set(static_cast<int>(models.size()), options.test_character_every,
@@ -581,7 +585,7 @@ BuildManifest read_build_manifest(const std::string& dir) {
     check("characters", i, c, "body_seed", is_seed, "a seed");
     check("characters", i, c, "apparel_seed", is_seed, "a seed");
     result.characters.push_back({c["name"].get<std::string>(), c["body_seed"].get<uint64_t>(),
-                                 c["apparel_seed"].get<uint64_t>(), c["split"].get<std::string>()});
+                                 c["apparel_seed"].get<uint64_t>(), c["split"].get<std::string>(), std::string()});
   }
   const json& clips = array("clips");
   for (size_t k = 0; k < clips.size(); ++k) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <set>
 #include <string>
 
@@ -218,6 +219,57 @@ TEST(Apparel, CharacterDataIsAcceptedByTheDatasetWriter) {
   EXPECT_TRUE(back.rig->skin_indices == c.rig_weights.indices);
 }
 
+TEST(Apparel, PhysicsVariationScalesEachPieceWithinItsBoundsAndChangesNothingElse) {
+  ApparelOptions varied;
+  varied.physics_variation = 0.5f;
+  varied.min_pieces = 3;
+  const ApparelOptions plain = [&] {
+    ApparelOptions o = varied;
+    o.physics_variation = 0;
+    return o;
+  }();
+  const DressedCharacter a = dress_character(test_body(1), 42, plain);
+  const DressedCharacter b = dress_character(test_body(1), 42, varied);
+  EXPECT_TRUE(a.mesh.V == b.mesh.V);  // the layout's draws are untouched
+  EXPECT_TRUE(a.rig_weights.weights == b.rig_weights.weights);
+  ASSERT_EQ(a.rig.num_bodies(), b.rig.num_bodies());
+  ASSERT_EQ(a.rig.num_joints(), b.rig.num_joints());
+  EXPECT_TRUE(dress_character(test_body(1), 42, varied).rig.bodies.back().mass == b.rig.bodies.back().mass);
+  // Per piece (bones named <kind><index>_c...): one mass factor and one damping factor, within [1/1.5, 1.5].
+  std::map<std::string, std::set<float>> mass_factors, damping_factors;
+  for (int i = 0; i < a.rig.num_bodies(); ++i) {
+    const PhysicsBody &x = a.rig.bodies[i], &y = b.rig.bodies[i];
+    if (x.mode == PhysicsMode::kFollowBone) {
+      EXPECT_EQ(x.mass, y.mass);
+      continue;
+    }
+    const std::string piece = x.name.substr(0, x.name.find("_c"));
+    const float m = y.mass / x.mass, d = y.angular_damping / x.angular_damping;
+    EXPECT_GE(m, 1 / 1.5f - 1e-5f) << x.name;
+    EXPECT_LE(m, 1.5f + 1e-5f) << x.name;
+    EXPECT_GE(d, 1 / 1.5f - 1e-5f) << x.name;
+    EXPECT_LE(d, 1.5f + 1e-5f) << x.name;
+    mass_factors[piece].insert(std::round(m * 1e4f) / 1e4f);
+    damping_factors[piece].insert(std::round(d * 1e4f) / 1e4f);
+  }
+  ASSERT_GE(mass_factors.size(), 2u);
+  std::set<float> pieces_factors;
+  for (const auto& [piece, factors] : mass_factors) {
+    EXPECT_EQ(factors.size(), 1u) << piece;
+    EXPECT_EQ(damping_factors[piece].size(), 1u) << piece;
+    pieces_factors.insert(*factors.begin());
+  }
+  EXPECT_EQ(pieces_factors.size(), mass_factors.size());  // each piece draws its own
+  // Stiffness: the spring is stiffness x the chain's gravity torque (which carries the mass), so the joint's
+  // factor is the mass factor times the stiffness factor: two factors within [1/1.5, 1.5] each.
+  for (int k = 0; k < a.rig.num_joints(); ++k) {
+    const float x = a.rig.joints[k].angular_stiffness.x(), y = b.rig.joints[k].angular_stiffness.x();
+    if (x == 0) continue;
+    EXPECT_GE(y / x, 1 / 2.25f - 1e-4f) << a.rig.joints[k].name;
+    EXPECT_LE(y / x, 2.25f + 1e-4f) << a.rig.joints[k].name;
+  }
+}
+
 TEST(Apparel, BadOptionsGiveErrors) {
   ApparelOptions o;
   o.min_pieces = 0;
@@ -231,6 +283,10 @@ TEST(Apparel, BadOptionsGiveErrors) {
   o = {};
   o.stiffness_scale = std::nanf("");
   EXPECT_NE(test::error_of([&] { dress_character(test_body(0), 1, o); }).find("stiffness_scale"), std::string::npos);
+  o = {};
+  o.physics_variation = 5;
+  EXPECT_EQ(test::error_of([&] { dress_character(test_body(0), 1, o); }),
+            "apparel options: physics_variation: expected a value in [0, 4], found 5");
   EXPECT_NE(test::error_of([&] { dress_character_with(test_body(0), {}, 1); }).find("at least one"), std::string::npos);
   GeneratedBody broken = test_body(0);
   broken.skeleton.names[3] = "chest";
