@@ -457,6 +457,9 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str();
   add_threads_option(*bench);
   bench->callback([options] {
+    const bool segmenter = std::find(options->suites.begin(), options->suites.end(), "segmenter") != options->suites.end();
+    AMT_CHECK(!segmenter || !options->data.empty(),
+              "bench --suite segmenter: --data: expected dataset shards or folders, found none");
     std::printf("amt bench: %d threads\n", omp_get_max_threads());
     for (const std::string& suite : options->suites) {
       if (suite == "lbs") bench_lbs(*options);
