@@ -159,8 +159,8 @@ struct Task {
 };
 
 // One augmented segmenter input of character `c` (TrainOptions::segmenter_augment): a variant drawn
-// (as built 50 %, open parts 25 %, bare body 12.5 %, bare open parts 12.5 %), mirrored through x = 0 with
-// probability 1/2, turned about the vertical (+Y) by an angle in [-5, 5] degrees and scaled by a
+// (as built 60 %, open parts 20 %, bare body 10 %, bare open parts 10 %), mirrored through x = 0 with
+// probability 1/2, turned about the vertical (+Y) by an angle in [-2, 2] degrees and scaled by a
 // factor in [0.85, 1.15]. The features follow the geometry: normals (columns 0-2) are mirrored and
 // turned, the other columns are distances over the height and part shares, which none of these change.
 // A function of (seed, step, the character's name).
@@ -173,11 +173,11 @@ SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t see
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   SegmenterInput in{c.V, c.segmenter_features, c.apparel_mask};
   const double u = unit(rng);
-  const char* what = u < 0.5 ? "" : u < 0.75 ? "open_parts" : u < 0.875 ? "bare_body" : "bare_open_parts";
+  const char* what = u < 0.6 ? "" : u < 0.8 ? "open_parts" : u < 0.9 ? "bare_body" : "bare_open_parts";
   for (const auto& v : c.segmenter_variants)
     if (v.what == what) in = {v.V, v.features, v.apparel_mask};
   const bool mirror = unit(rng) < 0.5;
-  const double angle = (unit(rng) * 2.0 - 1.0) * 5.0 * M_PI / 180.0;
+  const double angle = (unit(rng) * 2.0 - 1.0) * 2.0 * M_PI / 180.0;
   const double scale = 0.85 + 0.3 * unit(rng);
   const float co = float(std::cos(angle)), si = float(std::sin(angle)), sx = mirror ? -1.0f : 1.0f;
   // Row vectors times M: x' = co * sx x + si z, z' = -si * sx x + co z (mirror first, then turn).
