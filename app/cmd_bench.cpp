@@ -27,6 +27,8 @@
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/open_parts.h"
+#include "data_tools/builder/segmenter_augmentation.h"
+#include "data_tools/formats/dataset_file.h"
 #include "data_tools/garment/cloth_retarget.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
@@ -36,6 +38,8 @@
 #include "infer/runtime_torch.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_overfit.h"
+#include "train/pipeline.h"
+#include "train/samples.h"
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/procedural_motion.h"
@@ -54,6 +58,9 @@ struct BenchOptions {
   std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
   bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
   bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
+  std::vector<std::string> data;  // segmenter suite: dataset shards or folders
+  std::string segmenter;          // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
+  std::string split = "test";     // segmenter suite: the characters scored
 };
 
 // The calling thread's CPU time, seconds.
@@ -354,6 +361,66 @@ void bench_cloth(const BenchOptions& o) {
               1e3 * registration, 100.0 * before.share(), 100.0 * after.share());
 }
 
+// The segmenter on the characters of one split of a dataset, as built and remade (issue 17, item 4):
+// per character and on average, the IoU of the predicted apparel mask (p > 0.5) and the share of
+// vertices called apparel (beside the true share) on the character as built, on its bare body, on its
+// open-parts version (open_parts_example: open, overlapping body parts with duplicated seams, holes
+// under the clothes, a hair cap) and on that version's bare body. Bare bodies wear nothing: every
+// vertex called apparel is an error.
+void bench_segmenter(const BenchOptions& o) {
+  AMT_CHECK(!o.data.empty(), "bench --suite segmenter: --data: expected dataset shards or folders, found none");
+  const std::string dir = !o.model.empty() ? o.model : find_repository_folder("models/pretrained");
+  const std::string checkpoint = !o.segmenter.empty() ? o.segmenter : (std::filesystem::path(dir) / kSegmenterCheckpoint).string();
+  const ModelBundle bundle = load_segmenter_bundle(checkpoint);
+  std::printf("segmenter %s (inputs \"%s\"); %s characters of %zu dataset input%s; IoU of the mask p > 0.5; "
+              "called = share of vertices called apparel (true share in brackets)\n",
+              checkpoint.c_str(), bundle.segmenter->options.inputs.c_str(), o.split.c_str(), o.data.size(),
+              o.data.size() > 1 ? "s" : "");
+  struct Score {
+    double iou = 0, called = 0, truth = 0;
+  };
+  const auto score = [&](const SegmenterExample& e) {
+    const at::Tensor p = apparel_probabilities(bundle, e.mesh.V, e.mesh.F, e.skeleton.rest_joints).gt(0.5);
+    const at::Tensor gt =
+        at::from_blob(const_cast<uint8_t*>(e.apparel_mask.data()), {int64_t(e.apparel_mask.size())}, at::kByte).to(at::kBool);
+    const double inter = p.logical_and(gt).sum().item<double>(), uni = p.logical_or(gt).sum().item<double>();
+    return Score{uni > 0 ? inter / uni : 1.0, p.to(at::kDouble).mean().item<double>(), gt.to(at::kDouble).mean().item<double>()};
+  };
+  const char* kinds[4] = {"as built", "bare body", "open parts", "bare open parts"};
+  Score sum[4];
+  int count = 0;
+  for (const std::string& shard : resolve_shards(o.data)) {
+    const DatasetReader reader(shard);
+    for (const std::string& name : reader.character_names()) {
+      if (reader.character_summary(name).split != o.split) continue;
+      const CharacterData data = reader.read_character(name);
+      const SegmenterExample e{data.mesh, data.skeleton, data.body_weights, data.apparel_mask};
+      const SegmenterExample open = open_parts_example(e);
+      const Score s[4] = {score(e), score(bare_body_example(e)), score(open), score(open_parts_example(e, true))};
+      std::printf("segmenter %-16s %6d vertices; open parts %6d:", name.c_str(), e.mesh.num_vertices(),
+                  open.mesh.num_vertices());
+      for (int k = 0; k < 4; ++k) {
+        const bool bare = k == 1 || k == 3;
+        if (bare) std::printf("  %s called %.1f %%;", kinds[k], 100 * s[k].called);
+        else std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], s[k].iou, 100 * s[k].called, 100 * s[k].truth);
+        sum[k].iou += s[k].iou, sum[k].called += s[k].called, sum[k].truth += s[k].truth;
+      }
+      std::printf("\n");
+      std::fflush(stdout);
+      ++count;
+    }
+  }
+  AMT_CHECK(count > 0, "bench --suite segmenter: no ", o.split, " characters in the given data");
+  std::printf("segmenter mean over %d:", count);
+  for (int k = 0; k < 4; ++k) {
+    const bool bare = k == 1 || k == 3;
+    if (bare) std::printf("  %s called %.1f %%;", kinds[k], 100 * sum[k].called / count);
+    else std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], sum[k].iou / count, 100 * sum[k].called / count,
+                     100 * sum[k].truth / count);
+  }
+  std::printf("\n");
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -363,8 +430,9 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(100, 5000000))
       ->capture_default_str();
   bench->add_option("--repeats", options->repeats, "Timed repeats per figure")->check(CLI::Range(1, 100000))->capture_default_str();
-  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting), skinning (training steps)")
-      ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth", "skinning"}))
+  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting), skinning (training steps), segmenter "
+                    "(IoU and share called apparel on a dataset's characters, bare bodies and open-parts versions)")
+      ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth", "skinning", "segmenter"}))
       ->capture_default_str();
   bench->add_option("--runtime-sizes", options->runtime_sizes, "Vertex counts of the runtime suite's characters")
       ->check(CLI::Range(2000, 200000))
@@ -381,8 +449,17 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--segmenter-mask", options->segmenter_mask,
                   "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
                   "dressed character's");
+  bench->add_option("--data", options->data, "Segmenter suite: dataset shards (*.h5) or folders of them");
+  bench->add_option("--segmenter", options->segmenter,
+                    "Segmenter suite: the segmenter checkpoint scored (default: segmenter.ckpt of the model folder)");
+  bench->add_option("--split", options->split, "Segmenter suite: the split whose characters are scored")
+      ->check(CLI::IsMember({"train", "test"}))
+      ->capture_default_str();
   add_threads_option(*bench);
   bench->callback([options] {
+    const bool segmenter = std::find(options->suites.begin(), options->suites.end(), "segmenter") != options->suites.end();
+    AMT_CHECK(!segmenter || !options->data.empty(),
+              "bench --suite segmenter: --data: expected dataset shards or folders, found none");
     std::printf("amt bench: %d threads\n", omp_get_max_threads());
     for (const std::string& suite : options->suites) {
       if (suite == "lbs") bench_lbs(*options);
@@ -390,6 +467,7 @@ void add_bench_command(CLI::App& app) {
       if (suite == "runtime") bench_runtime(*options);
       if (suite == "cloth") bench_cloth(*options);
       if (suite == "skinning") bench_skinning(*options);
+      if (suite == "segmenter") bench_segmenter(*options);
     }
     std::printf("peak resident memory: %.0f MB\n", peak_resident_mb());
   });

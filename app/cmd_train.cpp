@@ -215,6 +215,9 @@ void add_train_command(CLI::App& app) {
   train->add_option("--loader-threads", o.loader_threads, "Threads reading samples ahead of training")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
+  train->add_flag("--no-segmenter-augment", [command](int64_t) { command->options.segmenter_augment = false; },
+                  "Segmenter with inputs welded: train on the characters as built only (no open-parts, bare-body, "
+                  "mirrored, turned or scaled variants)");
   train->add_flag("--quiet", command->quiet, "No progress line on stderr");
   DistributedOptions& d = command->distributed;
   train

@@ -7,9 +7,10 @@
 namespace amt {
 
 int64_t segmenter_feature_channels(const ApparelSegmenterOptions& options) {
-  TORCH_CHECK(options.inputs == "shape" || options.inputs == "positions",
-              "ApparelSegmenter: inputs: expected \"shape\" or \"positions\", got \"", options.inputs, "\"");
-  return options.inputs == "shape" ? kSegmentationFeatures : 0;
+  TORCH_CHECK(options.inputs == "shape" || options.inputs == "welded" || options.inputs == "positions",
+              "ApparelSegmenter: inputs: expected \"shape\", \"welded\" or \"positions\", got \"", options.inputs,
+              "\"");
+  return options.inputs == "positions" ? 0 : kSegmentationFeatures;
 }
 
 ApparelSegmenterImpl::ApparelSegmenterImpl(ApparelSegmenterOptions options_) : options(std::move(options_)) {
@@ -31,7 +32,7 @@ at::Tensor ApparelSegmenterImpl::forward(const at::Tensor& V, const at::Tensor& 
     TORCH_CHECK(features.defined() && features.dim() == V.dim() && features.size(-1) == C &&
                     features.size(-2) == V.size(-2) && (V.dim() == 2 || features.size(0) == V.size(0)),
                 "ApparelSegmenter: features: expected (", (V.dim() == 3 ? std::to_string(V.size(0)) + ", " : ""),
-                V.size(-2), ", ", C, ") shape features (segmentation_features), got ",
+                V.size(-2), ", ", C, ") shape features (segmenter_input_features), got ",
                 (features.defined() ? features.sizes() : at::IntArrayRef{}));
     x = at::cat({x, batched(features, 2).to(x.dtype())}, 2);
   }

@@ -26,10 +26,12 @@ struct ApparelSegmenterOptions {
   /// Normalise V inside the network (centre on its bounding box, divide by its height), so callers
   /// pass rest positions in metres. When false, callers must normalise.
   bool normalize_input = true;
-  /// "shape": the rest positions and the kSegmentationFeatures shape features of each vertex (normal,
-  /// component share, distances to the skeleton and to the largest component); "positions": the
-  /// paper's input, the rest positions alone (checkpoints written before the choice existed).
-  std::string inputs = "shape";
+  /// "welded": the rest positions and the kSegmentationFeatures shape features of each vertex computed
+  /// on the welded mesh (welded_segmentation_features: the same values however the mesh is split into
+  /// open parts); "shape": the same columns on the mesh as given (segmentation_features: checkpoints
+  /// written before "welded"); "positions": the paper's input, the rest positions alone (checkpoints
+  /// written before the shape features).
+  std::string inputs = "welded";
 };
 
 /// Channels the segmenter reads per vertex beside its rest position (0 for "positions").
@@ -41,7 +43,7 @@ class ApparelSegmenterImpl : public torch::nn::Module {
   explicit ApparelSegmenterImpl(ApparelSegmenterOptions options = {});
 
   /// V (B, N, 3) or (N, 3) rest positions, metres, and with inputs "shape" their features (B, N, 6)
-  /// or (N, 6) (segmentation_features; ignored with "positions") -> logits (B, N) or (N).
+  /// or (N, 6) (segmenter_input_features(options.inputs, ...); ignored with "positions") -> logits (B, N) or (N).
   at::Tensor forward(const at::Tensor& V, const at::Tensor& features = {});
 
   /// V (B, N, 3) or (N, 3) [, features] -> p̂ (B, N) or (N), the probability of each vertex being

@@ -221,8 +221,8 @@ void options_from_json(const std::string& text, const std::string& source, Appar
   const bool complete = j.is_object() && j.contains("encoder_widths") && j.contains("decoder_widths") &&
                         j.contains("negative_slope") && j.contains("normalize_input");
   if (complete && !j.contains("inputs")) options.inputs = "positions";
-  AMT_CHECK(options.inputs == "shape" || options.inputs == "positions", source,
-            ": options.inputs: expected \"shape\" or \"positions\", found \"", options.inputs, "\"");
+  AMT_CHECK(options.inputs == "shape" || options.inputs == "welded" || options.inputs == "positions", source,
+            ": options.inputs: expected \"shape\", \"welded\" or \"positions\", found \"", options.inputs, "\"");
 }
 void options_from_json(const std::string& text, const std::string& source, SkinningPredictorOptions& options) {
   read_json(text, source, options);

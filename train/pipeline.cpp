@@ -106,6 +106,19 @@ const torch::nn::Module* ModelBundle::apparel_module() const {
                          : static_cast<const torch::nn::Module*>(apparel.get());
 }
 
+ModelBundle load_segmenter_bundle(const std::string& checkpoint) {
+  std::error_code error;
+  AMT_CHECK(fs::is_regular_file(checkpoint, error), checkpoint, ": no such checkpoint (train it with amt train segmenter)");
+  ModelBundle bundle;
+  CheckpointInfo info;
+  bundle.segmenter =
+      load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(checkpoint, ModuleKind::kSegmenter, info);
+  bundle.joint_names = info.joint_names;
+  AMT_CHECK(!bundle.joint_names.empty(), checkpoint, ": joint_names: expected at least one joint, found none");
+  bundle.infos.push_back(info);
+  return bundle;
+}
+
 ModelBundle load_model_bundle(const std::string& dir) {
   std::error_code error;
   AMT_CHECK(fs::is_directory(dir, error), dir, ": no such model folder (expected a folder with ", kSegmenterCheckpoint,
@@ -202,7 +215,7 @@ at::Tensor apparel_probabilities(const ModelBundle& bundle, const MatrixX3f& V, 
     const std::vector<int32_t> parents = bundle.joint_names == canonical_joint_names()
                                              ? canonical_joint_parents()
                                              : std::vector<int32_t>(static_cast<size_t>(joints.rows()), -1);
-    shape_features = from_matrix(segmentation_features(V, F, joints, parents));
+    shape_features = from_matrix(segmenter_input_features(bundle.segmenter->options.inputs, V, F, joints, parents));
   }
   const at::Tensor V_t = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::kFloat);
   return bundle.segmenter.ptr()->probabilities(V_t, shape_features).contiguous();

@@ -76,6 +76,10 @@ inline constexpr const char* kSkinningSortedCheckpoint = "skinning_sorted.ckpt";
 /// differs from its name, or checkpoints trained on different skeletons.
 ModelBundle load_model_bundle(const std::string& dir);
 
+/// A bundle holding only the segmenter of `checkpoint` (and its joint names), enough for
+/// apparel_probabilities: how a segmenter checkpoint alone is scored. Throws as load_model_bundle.
+ModelBundle load_segmenter_bundle(const std::string& checkpoint);
+
 /// Throws amt::Error unless `bundle` was trained on `joint_names` (same names, same order), naming
 /// `source` (e.g. the dataset file) and both skeletons.
 void check_bundle_skeleton(const ModelBundle& bundle, const std::vector<std::string>& joint_names,

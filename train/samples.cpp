@@ -3,6 +3,7 @@
 #include <ATen/ATen.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
@@ -12,6 +13,7 @@
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/mesh.h"
+#include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/geometry/segmentation_features.h"
 #include "models/apparel_displacement.h"
 #include "models/edge_conv.h"
@@ -228,9 +230,32 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
     if (options_.kind == ModuleKind::kSegmenter) {
-      const MatrixXfR features =
-          segmentation_features(data.mesh.V, data.mesh.F, data.skeleton.rest_joints, data.skeleton.parents);
-      t->segmenter_features = float_tensor(features.data(), {N, kSegmentationFeatures});
+      const auto features_of = [&](const TriMesh& mesh) {
+        const MatrixXfR X = segmenter_input_features(options_.segmenter_inputs, mesh.V, mesh.F,
+                                                     data.skeleton.rest_joints, data.skeleton.parents);
+        return float_tensor(X.data(), {X.rows(), X.cols()});
+      };
+      t->segmenter_features = features_of(data.mesh);
+      if (options_.segmenter_variants) {
+        const SegmenterExample e{data.mesh, data.skeleton, data.body_weights, data.apparel_mask};
+        const auto add = [&](const std::string& what, const SegmenterExample& v) {
+          const int64_t n = v.mesh.num_vertices();
+          if (n == 0 || v.mesh.num_faces() == 0) return;  // e.g. a character that is all apparel: no bare body
+          t->segmenter_variants.push_back(
+              {what, float_tensor(v.mesh.V.data(), {n, 3}), features_of(v.mesh),
+               at::from_blob(const_cast<uint8_t*>(v.apparel_mask.data()), {n}, at::kByte).to(at::kBool)});
+        };
+        add("bare_body", bare_body_example(e));
+        // Open parts need the canonical skeleton's body (open_parts_example); other characters go
+        // without, with a warning.
+        try {
+          add("open_parts", open_parts_example(e));
+          add("bare_open_parts", open_parts_example(e, /*bare=*/true));
+        } catch (const Error& error) {
+          std::fprintf(stderr, "warning: %s: /characters/%s: no open-parts variant for the segmenter: %s\n",
+                       shards_[c.shard].c_str(), c.name.c_str(), error.what());
+        }
+      }
     }
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
       // The body mesh: body vertices and the faces whose three corners are body vertices.

@@ -72,6 +72,14 @@ struct CharacterTensors {
   /// segmenter_features (N, kSegmentationFeatures) float shape features of the rest mesh
   /// (segmentation_features); computed only for the segmenter, else undefined.
   at::Tensor segmenter_features;
+  /// With SampleSourceOptions::segmenter_variants: the character remade for augmentation, each with its
+  /// own V (N', 3), features (N', kSegmentationFeatures) and apparel mask (N') bool
+  /// (data_tools/builder/segmenter_augmentation.h): open parts, bare body, bare open parts.
+  struct SegmenterVariant {
+    std::string what;
+    at::Tensor V, features, apparel_mask;
+  };
+  std::vector<SegmenterVariant> segmenter_variants;
 };
 
 // === Samples
@@ -107,6 +115,11 @@ struct SampleSourceOptions {
   /// Compute CharacterTensors::G_body for every module, not only for skinning (the refiner needs it
   /// when B̂ comes from a trained skinning predictor).
   bool geodesics = false;
+  /// The segmenter's inputs (ApparelSegmenterOptions::inputs): which features segmenter_features holds
+  /// (segmenter_input_features).
+  std::string segmenter_inputs = "shape";
+  /// The segmenter: also make CharacterTensors::segmenter_variants.
+  bool segmenter_variants = false;
   /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):
   /// "nearest" (the global form's and the earlier local checkpoints') or "attachment".
   std::string apparel_anchor = "nearest";

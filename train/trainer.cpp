@@ -17,6 +17,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <type_traits>
 
@@ -156,6 +157,36 @@ struct Task {
   std::function<std::vector<at::Tensor>(const TrainingSample&, int64_t step, bool validating)> loss;
   std::function<void(SampleSource&)> prepare;
 };
+
+// One augmented segmenter input of character `c` (TrainOptions::segmenter_augment): a variant drawn
+// (as built 60 %, open parts 20 %, bare body 10 %, bare open parts 10 %), mirrored through x = 0 with
+// probability 1/2, turned about the vertical (+Y) by an angle in [-2, 2] degrees and scaled by a
+// factor in [0.85, 1.15]. The features follow the geometry: normals (columns 0-2) are mirrored and
+// turned, the other columns are distances over the height and part shares, which none of these change.
+// A function of (seed, step, the character's name).
+struct SegmenterInput {
+  at::Tensor V, features, apparel_mask;
+};
+SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t seed, int64_t step) {
+  std::seed_seq seq{uint64_t(seed), uint64_t(step), uint64_t(std::hash<std::string>{}(c.name)), uint64_t(0x5e6)};
+  std::mt19937_64 rng(seq);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  SegmenterInput in{c.V, c.segmenter_features, c.apparel_mask};
+  const double u = unit(rng);
+  const char* what = u < 0.6 ? "" : u < 0.8 ? "open_parts" : u < 0.9 ? "bare_body" : "bare_open_parts";
+  for (const auto& v : c.segmenter_variants)
+    if (v.what == what) in = {v.V, v.features, v.apparel_mask};
+  const bool mirror = unit(rng) < 0.5;
+  const double angle = (unit(rng) * 2.0 - 1.0) * 2.0 * M_PI / 180.0;
+  const double scale = 0.85 + 0.3 * unit(rng);
+  const float co = float(std::cos(angle)), si = float(std::sin(angle)), sx = mirror ? -1.0f : 1.0f;
+  // Row vectors times M: x' = co * sx x + si z, z' = -si * sx x + co z (mirror first, then turn).
+  const at::Tensor M = at::tensor({co * sx, 0.0f, -si * sx, 0.0f, 1.0f, 0.0f, si, 0.0f, co}).view({3, 3});
+  in.V = at::matmul(in.V, M) * float(scale);
+  if (in.features.size(1) >= 3)
+    in.features = at::cat({at::matmul(in.features.narrow(1, 0, 3), M), in.features.narrow(1, 3, in.features.size(1) - 3)}, 1);
+  return in;
+}
 
 // A trained module loaded for inference (the refiner's inputs): kind checked, skeleton checked.
 template <typename Net, typename Options>
@@ -387,9 +418,16 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       task.parts.push_back(make_part(kind, "segmenter", net, options_to_json(net->options)));
       task.terms = {"bce"};
       const double pos_weight = o.segmenter_pos_weight;
-      task.loss = [net, pos_weight](const TrainingSample& s, int64_t, bool) mutable {
-        const at::Tensor bce = apparel_bce_loss(net->forward(s.character->V, s.character->segmenter_features),
-                                                s.character->apparel_mask, pos_weight);
+      const bool augment = net->options.inputs == "welded" && o.segmenter_augment;
+      const uint64_t seed = o.seed;
+      task.loss = [net, pos_weight, augment, seed](const TrainingSample& s, int64_t step, bool validating) mutable {
+        const CharacterTensors& c = *s.character;
+        if (!augment || validating) {
+          const at::Tensor bce = apparel_bce_loss(net->forward(c.V, c.segmenter_features), c.apparel_mask, pos_weight);
+          return std::vector<at::Tensor>{bce, bce};  // eq. (3)
+        }
+        const SegmenterInput in = augmented_segmenter_input(c, seed, step);
+        const at::Tensor bce = apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
       };
       break;
@@ -689,6 +727,12 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       options_from_json(frozen.options_json, o.apparel_checkpoint, a);
       sampling.apparel_anchor = a.anchor;
     }
+  }
+  if (kind == ModuleKind::kSegmenter && !end_to_end) {
+    ApparelSegmenterOptions segmenter = o.networks.segmenter;
+    if (!network_infos.empty()) options_from_json(network_infos[0].options_json, network_paths[0], segmenter);
+    sampling.segmenter_inputs = segmenter.inputs;
+    sampling.segmenter_variants = segmenter.inputs == "welded" && o.segmenter_augment;
   }
   sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;
   sampling.clip_start_fraction = local_apparel ? o.rest_start_fraction : 0.0;

@@ -27,7 +27,9 @@ TEST(BenchCommand, TinyRunsPrintTheFiguresOfEachSuite) {
             std::string::npos)
       << skinning.out;
   test::expect_one_line_error(test::run_amt(dir, {"bench", "--suite", "nope"}),
-                              {"--suite: nope not in {lbs,geodesic,runtime,cloth,skinning}"}, 2);
+                              {"--suite: nope not in {lbs,geodesic,runtime,cloth,skinning,segmenter}"}, 2);
+  test::expect_one_line_error(test::run_amt(dir, {"bench", "--suite", "segmenter"}),
+                              {"bench --suite segmenter: --data: expected dataset shards or folders, found none"});
   EXPECT_TRUE(test::snapshot(dir).empty());  // a benchmark writes nothing where it runs
 }
 

@@ -156,18 +156,24 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
 }
 
 TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
-  // A new segmenter reads the shape features; a checkpoint's options (every field) written before
-  // the choice existed read positions alone (the shipped segmenter of earlier rounds); a fragment
+  // A new segmenter reads the welded shape features; a checkpoint's options (every field) written
+  // before the choice existed read positions alone (the shipped segmenter of earlier rounds); a fragment
   // such as --segmenter-options keeps the default; the choice survives a round trip.
-  EXPECT_EQ(ApparelSegmenterOptions{}.inputs, "shape");
+  EXPECT_EQ(ApparelSegmenterOptions{}.inputs, "welded");
   ApparelSegmenterOptions old, fragment, round;
   options_from_json(R"({"encoder_widths":[32,64,128],"decoder_widths":[64,32],"negative_slope":0.2,
       "normalize_input":true})", "segmenter.ckpt", old);
   EXPECT_EQ(old.inputs, "positions");
   EXPECT_EQ(segmenter_feature_channels(old), 0);
   options_from_json(R"({"encoder_widths":[8]})", "--segmenter-options", fragment);
-  EXPECT_EQ(fragment.inputs, "shape");
+  EXPECT_EQ(fragment.inputs, "welded");
   EXPECT_EQ(segmenter_feature_channels(fragment), 6);
+  // The shipped segmenter of this round (shape features on the mesh as given) keeps them.
+  ApparelSegmenterOptions shape;
+  options_from_json(R"({"encoder_widths":[32,64,128],"decoder_widths":[64,32],"negative_slope":0.2,
+      "normalize_input":true,"inputs":"shape"})", "segmenter.ckpt", shape);
+  EXPECT_EQ(shape.inputs, "shape");
+  EXPECT_EQ(segmenter_feature_channels(shape), 6);
   options_from_json(options_to_json(old), "x.ckpt", round);
   EXPECT_EQ(round.inputs, "positions");
   ApparelSegmenterOptions bad;
@@ -175,7 +181,7 @@ TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
     options_from_json(R"({"inputs":"colours"})", "x.ckpt", bad);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_STREQ(e.what(), "x.ckpt: options.inputs: expected \"shape\" or \"positions\", found \"colours\"");
+    EXPECT_STREQ(e.what(), "x.ckpt: options.inputs: expected \"shape\", \"welded\" or \"positions\", found \"colours\"");
   }
 }
 

@@ -13,6 +13,7 @@
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/segmentation_features.h"
 #include "data_tools/geometry/skeleton.h"
 #include "micro_dataset.h"
 #include "fresh_model.h"
@@ -101,6 +102,40 @@ TEST(PipelineBundle, ClearErrors) {
   const std::string message = test::error_of([&] { load_model_bundle(dir); });
   EXPECT_NE(message.find(dir + "/refiner.ckpt: skeleton: trained on 22 joints"), std::string::npos) << message;
   EXPECT_NE(message.find("must share one skeleton"), std::string::npos) << message;
+}
+
+TEST(PipelineBundle, SegmenterCheckpointsOfEachInputsLoadAndReadTheirOwnFeatures) {
+  // Old checkpoints (positions alone, "shape" features: the shipped segmenter) load as they were
+  // written and are scored on the features they were trained on, as are new ("welded") ones.
+  test::use_one_thread();
+  const std::string dir = test::test_directory("segmenter_inputs");
+  const Skeleton skeleton = canonical_skeleton();
+  MatrixX3f V(6, 3);
+  V << 0, 0, 0, 0.3f, 0, 0, 0, 1.7f, 0, 0.5f, 1, 0.1f, 0.7f, 1, 0.1f, 0.6f, 1.2f, 0.1f;
+  MatrixX3i F(2, 3);
+  F << 0, 1, 2, 3, 4, 5;
+  for (const std::string inputs : {"positions", "shape", "welded"}) {
+    torch::manual_seed(3);
+    ApparelSegmenterOptions so;
+    so.encoder_widths = {8, 16};
+    so.decoder_widths = {8};
+    so.inputs = inputs;
+    const std::string path = dir + "/" + inputs + ".ckpt";
+    ApparelSegmenter net(so);
+    test::save_fresh_checkpoint(path, ModuleKind::kSegmenter, net, options_to_json(so), canonical_joint_names());
+    const ModelBundle bundle = load_segmenter_bundle(path);
+    EXPECT_EQ(bundle.segmenter->options.inputs, inputs);
+    EXPECT_FALSE(bundle.segmenter->is_training());
+    const MatrixXfR X = segmenter_input_features(inputs, V, F, skeleton.rest_joints, canonical_joint_parents());
+    EXPECT_EQ(X.cols(), inputs == "positions" ? 0 : kSegmentationFeatures);
+    const at::Tensor V_t = at::from_blob(V.data(), {6, 3}, at::kFloat);
+    const at::Tensor X_t = at::from_blob(const_cast<float*>(X.data()), {6, X.cols()}, at::kFloat);
+    torch::NoGradGuard no_grad;
+    const at::Tensor expected = net->probabilities(V_t, inputs == "positions" ? at::Tensor() : X_t);
+    EXPECT_TRUE(at::allclose(apparel_probabilities(bundle, V, F, skeleton.rest_joints), expected, 1e-5, 1e-6)) << inputs;
+  }
+  EXPECT_NE(test::error_of([&] { load_segmenter_bundle(dir + "/nowhere.ckpt"); }).find("no such checkpoint"),
+            std::string::npos);
 }
 
 // === Bind
