@@ -290,6 +290,29 @@ json body_params_json(const BodyParams& p) {
           {"arm_angle_deg", p.arm_angle_deg}};
 }
 
+// The fields every build record has (dataset_quality.h reads them), procedural or PMX.
+json record_fields(const PlannedCharacter& planned, json params, const TriMesh& mesh, int body_vertices,
+                   int body_faces, const std::vector<uint8_t>& apparel_mask, int bones, int apparel_bodies,
+                   json pieces) {
+  int apparel_vertices = 0;
+  for (const uint8_t m : apparel_mask) apparel_vertices += m;
+  return {{"format", kRecordFormat},
+          {"version", kRecordVersion},
+          {"name", planned.name},
+          {"split", planned.split},
+          {"body_seed", planned.body_seed},
+          {"apparel_seed", planned.apparel_seed},
+          {"params", std::move(params)},
+          {"vertices", mesh.num_vertices()},
+          {"faces", mesh.num_faces()},
+          {"body_vertices", body_vertices},
+          {"body_faces", body_faces},
+          {"apparel_vertices", apparel_vertices},
+          {"bones", bones},
+          {"apparel_bodies", apparel_bodies},
+          {"pieces", std::move(pieces)}};
+}
+
 json character_record(const PlannedCharacter& planned, const DressedCharacter& dressed) {
   json pieces = json::array();
   for (const ApparelPiece& piece : dressed.pieces) {
@@ -302,23 +325,9 @@ json character_record(const PlannedCharacter& planned, const DressedCharacter& d
                       {"first_vertex", piece.first_vertex},
                       {"end_vertex", piece.end_vertex}});
   }
-  int apparel_vertices = 0;
-  for (const uint8_t m : dressed.apparel_mask) apparel_vertices += m;
-  return {{"format", kRecordFormat},
-          {"version", kRecordVersion},
-          {"name", planned.name},
-          {"split", planned.split},
-          {"body_seed", planned.body_seed},
-          {"apparel_seed", planned.apparel_seed},
-          {"params", body_params_json(dressed.body.params)},
-          {"vertices", dressed.mesh.num_vertices()},
-          {"faces", dressed.mesh.num_faces()},
-          {"body_vertices", dressed.body.mesh.num_vertices()},
-          {"body_faces", dressed.body.mesh.num_faces()},
-          {"apparel_vertices", apparel_vertices},
-          {"bones", dressed.rig.num_bones()},
-          {"apparel_bodies", dressed.num_apparel_bodies()},
-          {"pieces", pieces}};
+  return record_fields(planned, body_params_json(dressed.body.params), dressed.mesh, dressed.body.mesh.num_vertices(),
+                       dressed.body.mesh.num_faces(), dressed.apparel_mask, dressed.rig.num_bones(),
+                       dressed.num_apparel_bodies(), std::move(pieces));
 }
 
 // The build record of a PMX character, in the procedural record's format (dataset_quality.h reads both): figures
@@ -345,31 +354,16 @@ json pmx_character_record(const PlannedCharacter& planned, const PmxCharacter& p
                       {"first_vertex", piece.first_vertex},
                       {"end_vertex", piece.end_vertex}});
   }
-  int apparel_vertices = 0;
-  for (const uint8_t m : d.data.apparel_mask) apparel_vertices += m;
-  return {{"format", kRecordFormat},
-          {"version", kRecordVersion},
-          {"name", planned.name},
-          {"split", planned.split},
-          {"body_seed", planned.body_seed},
-          {"apparel_seed", planned.apparel_seed},
-          {"params", params},
-          {"vertices", d.data.mesh.num_vertices()},
-          {"faces", d.data.mesh.num_faces()},
-          {"body_vertices", d.body_vertices},
-          {"body_faces", d.body_faces},
-          {"apparel_vertices", apparel_vertices},
-          {"bones", pmx.num_bones()},
-          {"apparel_bodies", pmx.simulated_bodies},
-          {"pieces", pieces},
-          {"pmx",
-           {{"file", fs::path(planned.pmx).filename().string()},
-            {"model_name", pmx.model.header.name},
-            {"units", "simulated in PMX units, stored in metres"},
-            {"metres_per_unit", pmx.scale},
-            {"rigid_bodies", pmx.model.rigid_bodies.size()},
-            {"joints", pmx.model.joints.size()},
-            {"repairs", pmx.warnings}}}};
+  json record = record_fields(planned, params, d.data.mesh, d.body_vertices, d.body_faces, d.data.apparel_mask,
+                              pmx.num_bones(), pmx.simulated_bodies, std::move(pieces));
+  record["pmx"] = {{"file", fs::path(planned.pmx).filename().string()},
+                   {"model_name", pmx.model.header.name},
+                   {"units", "simulated in PMX units, stored in metres"},
+                   {"metres_per_unit", pmx.scale},
+                   {"rigid_bodies", pmx.model.rigid_bodies.size()},
+                   {"joints", pmx.model.joints.size()},
+                   {"repairs", pmx.warnings}};
+  return record;
 }
 
 // --- Simulation
