@@ -110,6 +110,8 @@ void add_build_command(CLI::App& dataset) {
   build->add_option("--pmx-metres-per-unit", options->pmx_metres_per_unit,
                     "Metres per PMX unit of the --pmx models (MMD's 0.08; physics runs in their units)")
       ->capture_default_str();
+  build->add_option("--character-joint-map", options->character_joint_map,
+                    "JSON map {canonical joint: bone name} for --pmx models whose bones the MMD name table cannot map");
   auto* motions = build->add_option(
       "--motions", options->motions,
       "Folder of BVH files (every *.bvh); \"\" for none. " + repository_default_help(kDefaultMotions));

@@ -125,6 +125,11 @@ json make_manifest(const DatasetBuildOptions& o, const DatasetPlan& plan) {
                           {"clips_per_commit", o.clips_per_commit},
                           {"apparel", apparel_settings(o.apparel)}};
   if (!o.pmx.empty()) manifest["settings"]["pmx_metres_per_unit"] = o.pmx_metres_per_unit;
+  if (!o.character_joint_map.empty()) {
+    manifest["settings"]["character_joint_map"] = {
+        {"file", fs::path(o.character_joint_map).filename().string()},
+        {"fnv1a64", file_hash(o.character_joint_map, "a joint map")}};
+  }
   json bvh = json::array();
   if (!o.motions.empty()) {
     for (const std::string& path : list_bvh_files(o.motions)) {
@@ -448,6 +453,8 @@ void validate_build_options(const DatasetBuildOptions& o) {
             " to 100000", o.pmx.empty() ? " (or PMX models with --pmx)" : "", ", found ", o.characters);
   AMT_CHECK(std::isfinite(o.pmx_metres_per_unit) && o.pmx_metres_per_unit > 0,
             "dataset build: --pmx-metres-per-unit: expected a finite length > 0, found ", o.pmx_metres_per_unit);
+  AMT_CHECK(o.character_joint_map.empty() || !o.pmx.empty(),
+            "dataset build: --character-joint-map: maps the bones of --pmx models, but no --pmx model was given");
   AMT_CHECK(o.vertices >= kMinBodyVertices && o.vertices <= kMaxBodyVertices, "dataset build: --vertices: expected ",
             kMinBodyVertices, " to ", kMaxBodyVertices, " vertices per body, found ", o.vertices);
   AMT_CHECK(o.procedural >= 0 && o.procedural <= 100000, "dataset build: --procedural: expected 0 to 100000, found ",
@@ -606,9 +613,17 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
   const Clock::time_point start = Clock::now();
   validate_build_options(o);
   DatasetBuildReport report;
+  // Read before anything is written, so that a bad map is refused at once.
+  std::optional<JointMapFile> joint_map;
+  if (!o.character_joint_map.empty()) joint_map = read_joint_map(o.character_joint_map);
 
   const DatasetPlan plan = plan_dataset(o, motion_library_of(o, derive_seed(o.seed, kMotionStream)));
   const json manifest = make_manifest(o, plan);
+  // This process's PMX models are read and mapped before the folder is touched: a model the name table cannot map
+  // is refused without leaving a manifest behind, so the rerun with --character-joint-map starts clean.
+  for (int c = o.shard.index; c < static_cast<int>(plan.characters.size()); c += o.shard.count) {
+    if (!plan.characters[c].pmx.empty()) load_pmx_character(plan.characters[c].pmx, joint_map, o.pmx_metres_per_unit);
+  }
 
   std::error_code error;
   fs::create_directories(o.out, error);
@@ -677,7 +692,7 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
       report.dress_seconds += seconds_since(t0);
       apparel_bodies += dressed->num_apparel_bodies();
     } else {
-      pmx.emplace(load_pmx_character(planned.pmx, std::nullopt, o.pmx_metres_per_unit));
+      pmx.emplace(load_pmx_character(planned.pmx, joint_map, o.pmx_metres_per_unit));
       report.body_seconds += seconds_since(t0);
       apparel_bodies += pmx->simulated_bodies;
       if (o.progress) {

@@ -66,6 +66,10 @@ struct DatasetBuildOptions {
   /// Metres per PMX unit of those models (finite, > 0): MMD's 0.08 by default. The physics runs in the models' own
   /// units; the shards store metres.
   float pmx_metres_per_unit = kPmxMetresPerUnit;
+  /// A joint map file (data_tools/formats/joint_map.h: {canonical joint: bone name}) for the PMX models, overriding
+  /// the MMD name table (models with English or otherwise unusual bone names); empty for the table alone. Recorded
+  /// in the manifest by name and checksum.
+  std::string character_joint_map;
   /// Folder of BVH files (every *.bvh); empty for procedural motions only.
   std::string motions;
   /// Number of procedural motion clips (>= 0).

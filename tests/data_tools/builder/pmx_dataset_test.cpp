@@ -290,5 +290,56 @@ TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
   EXPECT_NE(message.find("pmx_files.0.fnv1a64"), std::string::npos) << message;
 }
 
+// A model whose head bone the MMD name table does not know is refused with a hint to --character-joint-map; with a
+// map naming it, the build is the same as the build of the model under its MMD name, and the manifest records the
+// map so that a rerun with an edited map is refused. The refusal leaves no manifest, so the rerun with the map starts.
+TEST(PmxDataset, AJointMapMapsBonesTheNameTableCannot) {
+  const std::filesystem::path dir = test::temp_dir("pmx_dataset_joint_map");
+  DatasetBuildOptions o;
+  o.characters = 0;
+  o.procedural = 1;
+  o.frames = 8;
+  o.settle_seconds = 0.1f;
+  o.blend_seconds = 0.2f;
+  const std::string named = (dir / "named" / "humanoid.pmx").string(),
+                    renamed = (dir / "renamed" / "humanoid.pmx").string();
+  std::filesystem::create_directories(dir / "named");
+  std::filesystem::create_directories(dir / "renamed");
+  write_pmx(test::pmx_humanoid(), named);
+  PmxModel model = test::pmx_humanoid();
+  ASSERT_EQ(model.bones[5].name, "頭");
+  model.bones[5].name = "Kopf";
+  write_pmx(model, renamed);
+
+  o.out = (dir / "ds_named").string();
+  o.pmx = {named};
+  build_dataset(o);
+  o.out = (dir / "ds_renamed").string();
+  o.pmx = {renamed};
+  const std::string refused = test::error_of([&] { build_dataset(o); });
+  EXPECT_NE(refused.find("head"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("--character-joint-map"), std::string::npos) << refused;
+  EXPECT_FALSE(std::filesystem::exists(dir / "ds_renamed" / "manifest.json")) << "a refused build leaves no manifest";
+
+  const std::string map = (dir / "map.json").string();
+  std::ofstream(map) << R"({"head": "Kopf"})";
+  o.character_joint_map = map;
+  EXPECT_EQ(build_dataset(o).characters_built, 1);
+  const DatasetReader a((dir / "ds_named" / "pmx-0000.h5").string()), b((dir / "ds_renamed" / "pmx-0000.h5").string());
+  ASSERT_EQ(a.clip_names(), b.clip_names());
+  const std::string clip = a.clip_names().front();
+  EXPECT_EQ((a.read_vertices(clip, 0, 8) - b.read_vertices(clip, 0, 8)).cwiseAbs().maxCoeff(), 0.0f);
+  EXPECT_EQ(a.read_character("pmx-0000").body_weights, b.read_character("pmx-0000").body_weights);
+
+  std::ofstream(map) << R"({"head": "Kopf", "neck": "首"})";
+  const std::string edited = test::error_of([&] { build_dataset(o); });
+  EXPECT_NE(edited.find("character_joint_map"), std::string::npos) << edited;
+
+  o.pmx.clear();
+  o.characters = 1;
+  const std::string alone = test::error_of([&] { validate_build_options(o); });
+  EXPECT_NE(alone.find("--character-joint-map"), std::string::npos) << alone;
+}
+
 }  // namespace
 }  // namespace amt
