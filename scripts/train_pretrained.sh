@@ -1,20 +1,27 @@
 #!/usr/bin/env bash
-# Trains the shipped small model on a dataset folder: the apparel segmenter, the skinning predictor
+# Trains the shipped small model on one or more dataset folders: the apparel segmenter, the skinning predictor
 # with its two Table 4 variants (no_geodesic, sorted), the apparel module (local form,
 # models/apparel_dynamics.h) and then the refiner on the apparel module's rollouts. Writes
 # <OUT_DIR>/<module>.ckpt and <OUT_DIR>/<module>.csv and prints the step time, throughput and wall
 # time of each run.
 #
-#   scripts/train_pretrained.sh DATA_DIR [OUT_DIR=models/pretrained]
+#   scripts/train_pretrained.sh DATA_DIR[,DATA_DIR...] [OUT_DIR=models/pretrained]
+#
+# Several folders, separated by commas, train on all their shards together (validation on the held-out
+# characters of all of them).
 #
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (12000), SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000) and APPAREL_STEPS
-# (3000) for the apparel module's two stages, REFINER_STEPS (2000).
+# (3000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
+# skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
+# body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
+# weights).
 #
 # The segmenter and the skinning runs go side by side, one thread each; the apparel module trains
-# with one thread beside them, then the refiner on its rollouts. Every run uses AdamW at 5e-4 with a
+# with one thread beside them (after the skinning runs when it uses the predictor trained here), then
+# the refiner on its rollouts. Every run uses AdamW at 5e-4 with a
 # cosine decay to 0 (the paper's 1e-4 is for far longer training than this budget). Settings beyond
 # the paper, measured in models/pretrained/README.md: the skinning predictor adds a direct KL loss on
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
@@ -27,15 +34,17 @@
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
-  echo "usage: scripts/train_pretrained.sh DATA_DIR [OUT_DIR=models/pretrained]" >&2
+  echo "usage: scripts/train_pretrained.sh DATA_DIR[,DATA_DIR...] [OUT_DIR=models/pretrained]" >&2
   exit 2
 fi
-data=$1
+IFS=, read -r -a data <<< "$1"
 out=${2:-models/pretrained}
 amt=${AMT:-build/app/amt}
 seed=${SEED:-1}
 [[ -x "$amt" ]] || { echo "train_pretrained.sh: $amt: no amt program (build it, or set AMT)" >&2; exit 2; }
-[[ -e "$data" ]] || { echo "train_pretrained.sh: $data: no such dataset file or folder" >&2; exit 2; }
+for dir in "${data[@]}"; do
+  [[ -e "$dir" ]] || { echo "train_pretrained.sh: $dir: no such dataset file or folder" >&2; exit 2; }
+done
 export OMP_WAIT_POLICY=passive
 mkdir -p "$out"
 
@@ -44,7 +53,7 @@ segmenter='{"encoder_widths":[32,64,128],"decoder_widths":[64,32]}'
 skinning='{"feature_widths":[32,32],"attention_widths":[16,16],"head_encoder_widths":[32,64,128],"head_decoder_widths":[64,32]}'
 apparel='{"edge_widths":[48,48,48],"decoder_widths":[48],"inertia":0.6}'
 refiner='{"hidden_widths":[32,32]}'
-base=(--data "$data" --seed "$seed" --lr-schedule cosine --batch 1 --threads 1 --validation-samples 16)
+base=(--data "${data[@]}" --seed "$seed" --lr-schedule cosine --batch 1 --threads 1 --validation-samples 16)
 common=("${base[@]}" --out "$out" --lr 5e-4 --checkpoint-every 1000 --validate-every 1000)
 
 start_all=$SECONDS
@@ -56,9 +65,8 @@ run() {  # run NAME ARGS...: one training run and its wall time
   echo "== $name: wall $((SECONDS - start)) s" >&2
 }
 
-# The end-to-end run tiles Â with B̂ skinned by the ground-truth body weights (no --skinning) and
-# skins the apparel anchors with them too, so it need not wait for the skinning predictor; at
-# evaluation and at run time both come from the predicted weights.
+# The apparel module's anchors and the refiner's body are skinned with the skinning predictor's
+# weights (APPAREL_SKINNING), as at evaluation and at run time.
 modules=" ${MODULES:-segmenter skinning apparel} "
 pids=()
 names=()
@@ -75,6 +83,7 @@ fi
 if [[ $modules == *" skinning "* ]]; then
   launch skinning skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
     --skinning-options "$skinning"
+  skinning_pid=${pids[-1]}
   launch skinning_no_geodesic skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
     --variant no_geodesic --skinning-options "$skinning"
   launch skinning_sorted skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
@@ -83,20 +92,32 @@ fi
 if [[ $modules == *" apparel "* ]]; then
   # The apparel module (63-frame windows: 3 ground-truth states, up to 40 free-run frames without
   # gradient and up to 20 rolled-out frames with it), then
-  # the refiner on its rollouts with the body skinned by the ground-truth weights (as the apparel
-  # module's anchors are during training).
+  # the refiner on its rollouts.
   # Two stages: many cheap one-step (teacher-forced, noised) steps, where the network learns the
   # dynamics, then the rollout curriculum from that network (--init), where it learns to stay stable
   # on its own predictions. The one-step stage writes into <out>/apparel_one_step/.
+  anchor_skinning=${APPAREL_SKINNING:-$out/skinning.ckpt}
+  skinning_args=()
+  [[ $anchor_skinning == none ]] || skinning_args=(--skinning "$anchor_skinning")
   apparel_then_refiner() {
-    run apparel_one_step apparel "${base[@]}" --out "$out/apparel_one_step" --lr 5e-4 \
+    # The predictor trained here must be written before the apparel module reads it.
+    if [[ -n ${skinning_pid:-} && $anchor_skinning == "$out/skinning.ckpt" ]]; then
+      while kill -0 "$skinning_pid" 2> /dev/null; do sleep 10; done
+    fi
+    if [[ $anchor_skinning != none && ! -f $anchor_skinning ]]; then
+      echo "train_pretrained.sh: $anchor_skinning: no skinning checkpoint for the apparel anchors" \
+        "(train the skinning module first, or set APPAREL_SKINNING=none)" >&2
+      return 1
+    fi
+    run apparel_one_step apparel "${base[@]}" "${skinning_args[@]}" --out "$out/apparel_one_step" --lr 5e-4 \
       --steps "${APPAREL_ONE_STEP_STEPS:-30000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
       --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.003 --apparel-options "$apparel" &&
-      run apparel apparel "${base[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
+      run apparel apparel "${base[@]}" "${skinning_args[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
         --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
         --steps "${APPAREL_STEPS:-3000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
         --noise 0.003 --rest-start 0.2 &&
-      run refiner refiner "${common[@]}" --steps "${REFINER_STEPS:-2000}" --apparel "$out/apparel.ckpt" \
+      run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
+        --apparel "$out/apparel.ckpt" \
         --refiner-options "$refiner"
   }
   apparel_then_refiner > "$out/apparel.log" 2>&1 &
