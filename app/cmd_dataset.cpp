@@ -92,6 +92,21 @@ void add_preview_command(CLI::App& dataset) {
 // The motions of `amt dataset build` when --motions is not given: the 20 CMU clips in the repository.
 constexpr const char* kDefaultMotions = "data/mocap/cmu";
 
+// The apparel physics settings of a build: `amt dataset build` and `amt dataset export-pmx` (which must dress a
+// character as the build did) take the same ones.
+void add_apparel_physics_options(CLI::App& command, ApparelOptions& apparel) {
+  command.add_option("--apparel-damping", apparel.damping_scale,
+                     "Scale on the damping of apparel bodies (ApparelOptions::damping_scale)")
+      ->capture_default_str();
+  command.add_option("--apparel-stiffness", apparel.stiffness_scale,
+                     "Scale on the angular spring stiffness of apparel joints (ApparelOptions::stiffness_scale)")
+      ->capture_default_str();
+  command.add_option("--apparel-variation", apparel.physics_variation,
+                     "Per-piece spread of apparel mass, damping and stiffness: factors log-uniform in [1/(1+v), 1+v] "
+                     "(ApparelOptions::physics_variation; 0 = every piece of a kind alike)")
+      ->capture_default_str();
+}
+
 // `amt dataset build --out DIR ...`: characters x motions simulated into shards (data_tools/builder/dataset_builder.h).
 void add_build_command(CLI::App& dataset) {
   auto* build = dataset.add_subcommand(
@@ -119,16 +134,7 @@ void add_build_command(CLI::App& dataset) {
   build->add_option("--frames", options->frames, "Frames per clip (30 fps)")->capture_default_str();
   build->add_option("--vertices", options->vertices, "Target vertex count of each body before dressing")
       ->capture_default_str();
-  build->add_option("--apparel-damping", options->apparel.damping_scale,
-                    "Scale on the damping of apparel bodies (ApparelOptions::damping_scale)")
-      ->capture_default_str();
-  build->add_option("--apparel-stiffness", options->apparel.stiffness_scale,
-                    "Scale on the angular spring stiffness of apparel joints (ApparelOptions::stiffness_scale)")
-      ->capture_default_str();
-  build->add_option("--apparel-variation", options->apparel.physics_variation,
-                    "Per-piece spread of apparel mass, damping and stiffness: factors log-uniform in [1/(1+v), 1+v] "
-                    "(ApparelOptions::physics_variation; 0 = every piece of a kind alike)")
-      ->capture_default_str();
+  add_apparel_physics_options(*build, options->apparel);
   build->add_option("--physics-step", options->physics_step, "Physics substep in seconds")->capture_default_str();
   build->add_option("--solver-iterations", options->solver_iterations, "Constraint solver iterations per substep")
       ->capture_default_str();
@@ -238,6 +244,7 @@ void add_export_pmx_command(CLI::App& dataset) {
   export_pmx->add_option("--metres-per-unit", export_options->metres_per_unit,
                          "Metres per PMX unit (0.1 makes MMD's gravity the builder's)")
       ->capture_default_str();
+  add_apparel_physics_options(*export_pmx, options->apparel);
   add_threads_option(*export_pmx);
   export_pmx->callback([options, index, export_options] {
     const std::string& out = options->out;

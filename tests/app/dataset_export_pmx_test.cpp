@@ -2,6 +2,8 @@
 // mesh and apparel; bad options are one-line errors that write nothing.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -58,6 +60,41 @@ TEST(DatasetExportPmxCommand, BadOptionsAreOneLineErrorsThatWriteNothing) {
             {export_pmx("--metres-per-unit", "0"),
              {"dataset export-pmx: --metres-per-unit: expected a number > 0, found 0"}},
             {export_pmx("--out", "mine.pmx"), {"mine.pmx", "a folder"}}});
+}
+
+// The apparel physics options dress the character as `amt dataset build` with the same options does: the exported
+// rigid bodies are those of that character, and not those of the default build.
+TEST(DatasetExportPmxCommand, ApparelPhysicsOptionsDressAsTheBuildDoes) {
+  const fs::path dir = test::temp_dir("dataset_export_pmx_physics");
+  test::expect_success(dir, {"dataset", "export-pmx", "--seed", "11", "--character", "1", "--vertices", "1000",
+                             "--apparel-damping", "1.5", "--apparel-stiffness", "0.5", "--apparel-variation", "0.5",
+                             "--out", "c.pmx", "--threads", "1"});
+  const PmxModel model = read_pmx((dir / "c.pmx").string());
+  DatasetBuildOptions options;
+  options.seed = 11;
+  options.characters = 2;
+  options.vertices = 1000;
+  const PmxModel plain = pmx_from_character(dataset_character(options, 1), {});
+  options.apparel.damping_scale = 1.5f;
+  options.apparel.stiffness_scale = 0.5f;
+  options.apparel.physics_variation = 0.5f;
+  const PmxModel expected = pmx_from_character(dataset_character(options, 1), {});
+  ASSERT_EQ(model.rigid_bodies.size(), expected.rigid_bodies.size());
+  ASSERT_EQ(model.joints.size(), expected.joints.size());
+  float differs = 0.0f;
+  for (size_t b = 0; b < model.rigid_bodies.size(); ++b) {
+    EXPECT_FLOAT_EQ(model.rigid_bodies[b].mass, expected.rigid_bodies[b].mass) << b;
+    EXPECT_FLOAT_EQ(model.rigid_bodies[b].linear_damping, expected.rigid_bodies[b].linear_damping) << b;
+    EXPECT_FLOAT_EQ(model.rigid_bodies[b].angular_damping, expected.rigid_bodies[b].angular_damping) << b;
+    differs = std::max(differs, std::abs(model.rigid_bodies[b].angular_damping - plain.rigid_bodies[b].angular_damping));
+  }
+  for (size_t k = 0; k < model.joints.size(); ++k) {
+    EXPECT_LT((model.joints[k].spring_angular - expected.joints[k].spring_angular).cwiseAbs().maxCoeff(), 1e-6f) << k;
+  }
+  EXPECT_GT(differs, 0.01f) << "the options changed nothing";
+  test::expect_errors_writing_nothing(
+      dir, {{{"dataset", "export-pmx", "--vertices", "1000", "--apparel-damping", "0", "--out", "d.pmx"},
+             {"apparel options: damping_scale: expected a positive value, found 0"}}});
 }
 
 }  // namespace
