@@ -21,6 +21,7 @@
 #include "data_tools/garment/cloth_retarget.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/builder/garment_pairs.h"
+#include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/metrics_torch.h"
@@ -185,8 +186,13 @@ struct CharacterCache {
   std::optional<SegmentationScores> segmentation;
   // Share of the bare body (largest connected part, segmented alone) called apparel.
   double bare_apparel_share = std::nan("");
+  // The character remade of open parts (open_parts_example): the segmenter's IoU on it and the share of its bare
+  // version called apparel. NaN when the character cannot be remade (not a procedural character's layout).
+  double open_parts_iou = std::nan(""), bare_open_parts_share = std::nan("");
   TriMesh mesh;           // the rest mesh and joints, for the bare body
   MatrixX3f rest_joints;
+  Skeleton skeleton;      // and the skeleton and body weights, for the open-parts version
+  MatrixXfR body_weights;
 };
 
 // Share of a character's largest connected part called apparel when the segmenter sees that part
@@ -207,6 +213,27 @@ double bare_body_apparel_share(const ModelBundle& bundle, const CharacterCache& 
   return apparel_probabilities(bundle, bare.V, bare.F, c.rest_joints).gt(0.5).to(at::kDouble).mean().item<double>();
 }
 
+// The segmenter on character c remade as real models are built (open_parts_example: open, overlapping body parts,
+// duplicated seams, a hair cap), dressed and bare: what `amt bench --suite segmenter` measures, in the report.
+void score_open_parts(const ModelBundle& bundle, CharacterCache& c) {
+  const SegmenterExample example{c.mesh, c.skeleton, c.body_weights, c.mask};
+  std::optional<SegmenterExample> open, bare;
+  try {
+    open = open_parts_example(example);
+    bare = open_parts_example(example, true);
+  } catch (const Error&) {
+    return;  // not a procedural character's layout (a PMX model): no open-parts version, NaN in the report
+  }
+  const auto called = [&](const SegmenterExample& e) {
+    return apparel_probabilities(bundle, e.mesh.V, e.mesh.F, e.skeleton.rest_joints).gt(0.5);
+  };
+  const at::Tensor p = called(*open);
+  const at::Tensor gt = at::tensor(at::ArrayRef<uint8_t>(open->apparel_mask)).to(at::kBool);
+  const double uni = p.logical_or(gt).sum().item<double>();
+  c.open_parts_iou = uni > 0 ? p.logical_and(gt).sum().item<double>() / uni : 1.0;
+  c.bare_open_parts_share = called(*bare).to(at::kDouble).mean().item<double>();
+}
+
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
                                                const std::string& subset, bool penetration) {
   const CharacterData data = reader.read_character(name);
@@ -223,6 +250,8 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   c->E = unique_edges(data.mesh.F);
   c->mesh = data.mesh;
   c->rest_joints = data.skeleton.rest_joints;
+  c->skeleton = data.skeleton;
+  c->body_weights = data.body_weights;
   c->num_apparel = static_cast<int>(std::count_if(c->mask.begin(), c->mask.end(), [](uint8_t a) { return a != 0; }));
   if (penetration) {
     BodyPenetration body(data.mesh.V, data.mesh.F, c->mask);
@@ -389,6 +418,11 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
   result.clip_scores = acc.clip_scores;
   std::map<std::string, std::pair<SegmentationScores, int>> seg;
   std::map<std::string, std::pair<double, int>> bare;
+  struct OpenSum {
+    double iou = 0, bare_share = 0;
+    int count = 0;
+  };
+  std::map<std::string, OpenSum> open;
   for (const auto& c : cache) {
     CharacterScores cs;
     cs.character = c->name;
@@ -405,6 +439,12 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
       auto& b = bare[c->subset];
       b.first += c->bare_apparel_share;
       ++b.second;
+      cs.open_parts_iou = c->open_parts_iou;
+      cs.bare_open_parts_share = c->bare_open_parts_share;
+      if (std::isfinite(c->open_parts_iou)) {
+        auto& o = open[c->subset];
+        o.iou += c->open_parts_iou, o.bare_share += c->bare_open_parts_share, ++o.count;
+      }
     }
     for (const auto& [key, a] : acc.characters) {
       if (std::get<0>(key) == c->name) cs.scores[std::get<1>(key)][std::get<2>(key)] = a.result();
@@ -417,6 +457,7 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
     result.segmentation[subset] = mean;
   }
   for (const auto& [subset, b] : bare) result.bare_apparel_share[subset] = b.first / b.second;
+  for (const auto& [subset, o] : open) result.open_parts[subset] = {o.iou / o.count, o.bare_share / o.count};
   const auto to_curves = [](const std::map<std::pair<std::string, std::string>, Curve>& from,
                             std::vector<RolloutCurve>& to) {
     for (const auto& [key, curve] : from) {
@@ -724,6 +765,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       if (m.bind == "predicted" && !c.segmentation) {
         c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
         c.bare_apparel_share = bare_body_apparel_share(bundle, c);
+        score_open_parts(bundle, c);
       }
 
       if (m.stages == PipelineStages::kBodyOnly) {
@@ -921,13 +963,20 @@ std::string evaluation_json(const EvaluationResult& result) {
   for (const auto& [subset, s] : result.segmentation) {
     segmentation[subset] = seg(s);
     segmentation[subset]["bare_body_apparel_share"] = bare_share(subset);
+    const auto open = result.open_parts.find(subset);
+    if (open != result.open_parts.end()) {
+      segmentation[subset]["open_parts_iou"] = number(open->second.first);
+      segmentation[subset]["bare_open_parts_apparel_share"] = number(open->second.second);
+    }
   }
   j["segmentation"] = segmentation;
   Json characters = Json::array();
   for (const CharacterScores& c : result.characters) {
     Json cj{{"character", c.character}, {"subset", c.subset}, {"vertices", c.num_vertices},
             {"apparel_vertices", c.num_apparel}, {"segmentation", seg(c.segmentation)},
-                {"bare_body_apparel_share", number(c.bare_apparel_share)}};
+                {"bare_body_apparel_share", number(c.bare_apparel_share)},
+                {"open_parts_iou", number(c.open_parts_iou)},
+                {"bare_open_parts_apparel_share", number(c.bare_open_parts_share)}};
     Json methods = Json::object();
     for (const auto& [method, protocols] : c.scores)
       for (const auto& [protocol, s] : protocols) methods[method][protocol] = scores(s);

@@ -85,6 +85,9 @@ struct CharacterScores {
   SegmentationScores segmentation;
   /// Share of the character's bare body (its largest connected part, segmented alone) called apparel.
   double bare_apparel_share = std::nan("");
+  /// The segmenter on the character remade of open parts as real models are (open_parts_example): IoU, and the
+  /// share of its bare version called apparel. NaN when it cannot be remade (a PMX model's layout).
+  double open_parts_iou = std::nan(""), bare_open_parts_share = std::nan("");
   /// method -> protocol -> scores, for the skinning baseline and the full model.
   std::map<std::string, std::map<std::string, MotionScores>> scores;
 };
@@ -118,6 +121,9 @@ struct EvaluationResult {
   /// subset -> share of the bare bodies' vertices called apparel (CharacterScores::bare_apparel_share),
   /// averaged over its characters.
   std::map<std::string, double> bare_apparel_share;
+  /// subset -> (open-parts IoU, bare open parts called apparel) averaged over the characters that have an
+  /// open-parts version (CharacterScores::open_parts_iou).
+  std::map<std::string, std::pair<double, double>> open_parts;
   std::vector<CharacterScores> characters;
   std::vector<RolloutCurve> curves;
   /// Paper protocol per horizon: pmd_a[k] is the mean PMD_a of the (k + 1)-th predicted frame of the

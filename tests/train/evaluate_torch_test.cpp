@@ -15,14 +15,17 @@
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/builder/example_dataset.h"
+#include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/skeleton.h"
 #include "fresh_model.h"
+#include "tests/data_tools/builder/tiny_build.h"
 #include "micro_dataset.h"
 #include "train/evaluation_viewer.h"
 #include "train/module_options.h"
+#include "train/pipeline.h"
 #include "train/report.h"
 
 namespace amt {
@@ -408,6 +411,54 @@ TEST(Report, WritesTablesJsonAndPlots) {
   EXPECT_EQ(logs[0].column("val_loss"), 4);
   EXPECT_TRUE(std::isnan(logs[0].rows[0][4]));
   EXPECT_DOUBLE_EQ(logs[0].rows[1][1], 0.25);
+}
+
+// The report's open-parts columns: each character remade of open parts (open_parts_example) and segmented as
+// `amt bench --suite segmenter` does, dressed (IoU against the remade mask) and bare (share called apparel); the
+// subset's figures are the means over its characters, and the tables show them.
+TEST(Report, OpenPartsSegmentationIsScoredPerCharacterAndSubset) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("report_open_parts");
+  build_dataset(test::tiny_build_options(dir + "/proc", 1));  // one small dressed procedural character
+  const CharacterData character = DatasetReader(dir + "/proc/character-0000.h5").read_character("character-0000");
+  const std::string model = write_fresh_bundle("report_open_parts_bundle");
+  const ModelBundle bundle = load_model_bundle(model);
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  options.methods = {"full"};
+  const EvaluationResult result = evaluate_model(bundle, {dir + "/proc/character-0000.h5"}, options);
+  ASSERT_EQ(result.characters.size(), 1u);
+
+  const SegmenterExample example{character.mesh, character.skeleton, character.body_weights, character.apparel_mask};
+  const SegmenterExample open = open_parts_example(example), bare = open_parts_example(example, true);
+  const auto called = [&](const SegmenterExample& e) {
+    const at::Tensor p = apparel_probabilities(bundle, e.mesh.V, e.mesh.F, e.skeleton.rest_joints);
+    std::vector<uint8_t> mask(size_t(p.size(0)));
+    for (int64_t i = 0; i < p.size(0); ++i) mask[size_t(i)] = p[i].item<float>() > 0.5f;
+    return mask;
+  };
+  const std::vector<uint8_t> p = called(open), q = called(bare);
+  double inter = 0, uni = 0;
+  for (size_t i = 0; i < p.size(); ++i) inter += p[i] && open.apparel_mask[i], uni += p[i] || open.apparel_mask[i];
+  const double iou = uni > 0 ? inter / uni : 1.0;
+  const double bare_share = double(std::count(q.begin(), q.end(), 1)) / double(q.size());
+  const CharacterScores& c = result.characters[0];
+  EXPECT_NEAR(c.open_parts_iou, iou, 1e-9);
+  EXPECT_NEAR(c.bare_open_parts_share, bare_share, 1e-9);
+  ASSERT_EQ(result.open_parts.count(c.subset), 1u);
+  EXPECT_NEAR(result.open_parts.at(c.subset).first, iou, 1e-9);
+  EXPECT_NEAR(result.open_parts.at(c.subset).second, bare_share, 1e-9);
+
+  ReportOptions report;
+  report.out_dir = dir + "/out";
+  report.model_dir = model;
+  report.command = "amt eval --data proc.h5";
+  std::stringstream md;
+  md << std::ifstream(write_report(result, report).markdown).rdbuf();
+  char row[64];
+  std::snprintf(row, sizeof row, " | %.3f | %.1f %% |\n", iou, 100 * bare_share);
+  EXPECT_NE(md.str().find(row), std::string::npos) << row << md.str();
 }
 
 }  // namespace
