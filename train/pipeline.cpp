@@ -5,6 +5,8 @@
 #include <torch/utils.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <filesystem>
 #include <sstream>
@@ -221,6 +223,39 @@ at::Tensor apparel_probabilities(const ModelBundle& bundle, const MatrixX3f& V, 
   return bundle.segmenter.ptr()->probabilities(V_t, shape_features).contiguous();
 }
 
+at::Tensor pin_floating_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges, double share,
+                               int* pinned) {
+  const int64_t N = mask.size(0);
+  AMT_CHECK(mask.dim() == 1 && prob.dim() == 1 && prob.size(0) == N, "pin_floating_pieces: expected (N) mask and ",
+            "(N) probabilities, found ", mask.sizes(), " and ", prob.sizes());
+  AMT_CHECK(share > 0 && share <= 1, "pin_floating_pieces: share: expected (0, 1], found ", share);
+  at::Tensor out = mask.to(at::kBool).contiguous().clone();
+  const at::Tensor p = prob.to(at::kFloat).contiguous();
+  bool* m = out.data_ptr<bool>();
+  const float* q = p.data_ptr<float>();
+  int count = 0;
+  const std::vector<int32_t> label = connected_components(static_cast<int>(N), edges, &count);
+  std::vector<std::vector<int64_t>> members(static_cast<size_t>(count));
+  std::vector<uint8_t> has_body(static_cast<size_t>(count), 0);
+  for (int64_t i = 0; i < N; ++i) {
+    members[static_cast<size_t>(label[i])].push_back(i);
+    if (!m[i]) has_body[static_cast<size_t>(label[i])] = 1;
+  }
+  if (pinned) *pinned = 0;
+  if (std::find(has_body.begin(), has_body.end(), 1) == has_body.end()) return out;  // no body to hang from
+  for (int k = 0; k < count; ++k) {
+    std::vector<int64_t>& piece = members[static_cast<size_t>(k)];
+    if (has_body[static_cast<size_t>(k)]) continue;
+    const size_t held = std::min(piece.size(), static_cast<size_t>(std::ceil(share * double(piece.size()) - 1e-9)));
+    // Lowest p̂ first; ties by index, so the result does not depend on the sort's implementation.
+    std::partial_sort(piece.begin(), piece.begin() + static_cast<std::ptrdiff_t>(held), piece.end(),
+                      [q](int64_t a, int64_t b) { return q[a] < q[b] || (q[a] == q[b] && a < b); });
+    for (size_t j = 0; j < held; ++j) m[piece[j]] = false;
+    if (pinned) ++*pinned;
+  }
+  return out;
+}
+
 BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F,
                               const at::Tensor& joints, const BindOptions& options) {
   AMT_CHECK(V.defined() && V.dim() == 2 && V.size(1) == 3 && V.size(0) > 0,
@@ -251,7 +286,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());
     c.apparel_mask = options.apparel_mask.to(at::kBool).contiguous();
   } else {
-    c.apparel_mask = c.apparel_prob.gt(0.5);
+    c.apparel_mask = pin_floating_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e));
   }
   c.refiner_prob = c.apparel_mask.to(at::kFloat);
   c.apparel_ids = at::nonzero(c.apparel_mask).flatten().contiguous();

@@ -112,7 +112,8 @@ struct BoundCharacter {
   at::Tensor edges;
   /// apparel_prob (N) float p̂ of the segmenter (computed even when the mask is overridden).
   at::Tensor apparel_prob;
-  /// apparel_mask (N) bool, the mask in use (p̂ > 0.5 or the override).
+  /// apparel_mask (N) bool, the mask in use: the override, or p̂ > 0.5 with floating pieces pinned
+  /// (pin_floating_pieces).
   at::Tensor apparel_mask;
   /// refiner_prob (N) float, the apparel input of the refiner: the mask in use as 0/1, the form the
   /// refiner is trained with.
@@ -153,6 +154,18 @@ struct BoundCharacter {
             apparel_contact_weights, apparel_ancestors};
   }
 };
+
+/// The share of a floating piece held by the body (pin_floating_pieces).
+inline constexpr double kFloatingPiecePinShare = 0.05;
+
+/// The segmenter's mask made to hang from the body. A connected part of the mesh (by `edges`) that `mask` calls
+/// apparel from end to end, while the mesh has body vertices elsewhere, would float free: the apparel module learned
+/// pieces held by their first rows (the dataset's pieces hang from 4-27 % of their vertices, which a body bone holds
+/// rigidly and the ground truth calls body), and a piece with none drifts away from the character. Its
+/// ceil(share * size) vertices of lowest p̂ (where the segmenter doubts, next to where the piece is held) become
+/// body. mask (N) bool, prob (N) float; returns the new mask and, in `pinned`, the number of pieces pinned.
+at::Tensor pin_floating_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges,
+                               double share = kFloatingPiecePinShare, int* pinned = nullptr);
 
 /// The segmenter's p̂ (N) (eq. 2) of a rest mesh (V, F) with rest joints on the bundle's skeleton (J, 3),
 /// its shape features computed here (segmentation_features). Throws amt::Error on a mesh without
