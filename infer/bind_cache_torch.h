@@ -18,7 +18,7 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 4;  // 4: floating apparel pieces pinned (pin_floating_pieces)
+inline constexpr int64_t kBindVersion = 4;  // 4: apparel pieces hung (hang_apparel_pieces)
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;

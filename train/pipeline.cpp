@@ -9,6 +9,9 @@
 #include <cmath>
 #include <chrono>
 #include <filesystem>
+#include <numeric>
+#include <map>
+#include <functional>
 #include <sstream>
 
 #include "data_tools/geometry/error.h"
@@ -223,35 +226,67 @@ at::Tensor apparel_probabilities(const ModelBundle& bundle, const MatrixX3f& V, 
   return bundle.segmenter.ptr()->probabilities(V_t, shape_features).contiguous();
 }
 
-at::Tensor pin_floating_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges, double share,
-                               int* pinned) {
+at::Tensor hang_apparel_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges, double share,
+                               HungPieces* hung) {
   const int64_t N = mask.size(0);
-  AMT_CHECK(mask.dim() == 1 && prob.dim() == 1 && prob.size(0) == N, "pin_floating_pieces: expected (N) mask and ",
+  AMT_CHECK(mask.dim() == 1 && prob.dim() == 1 && prob.size(0) == N, "hang_apparel_pieces: expected (N) mask and ",
             "(N) probabilities, found ", mask.sizes(), " and ", prob.sizes());
-  AMT_CHECK(share > 0 && share <= 1, "pin_floating_pieces: share: expected (0, 1], found ", share);
+  AMT_CHECK(share > 0 && share <= 1, "hang_apparel_pieces: share: expected (0, 1], found ", share);
   at::Tensor out = mask.to(at::kBool).contiguous().clone();
   const at::Tensor p = prob.to(at::kFloat).contiguous();
   bool* m = out.data_ptr<bool>();
   const float* q = p.data_ptr<float>();
+  if (hung) *hung = HungPieces{};
+  if (std::all_of(m, m + N, [](bool a) { return a; })) return out;  // no body to hang from
   int count = 0;
-  const std::vector<int32_t> label = connected_components(static_cast<int>(N), edges, &count);
-  std::vector<std::vector<int64_t>> members(static_cast<size_t>(count));
-  std::vector<uint8_t> has_body(static_cast<size_t>(count), 0);
-  for (int64_t i = 0; i < N; ++i) {
-    members[static_cast<size_t>(label[i])].push_back(i);
-    if (!m[i]) has_body[static_cast<size_t>(label[i])] = 1;
+  const std::vector<int32_t> part = connected_components(static_cast<int>(N), edges, &count);
+  // Body islands: body vertices joined by body-body edges, within their part.
+  std::vector<int32_t> island(static_cast<size_t>(N));
+  std::iota(island.begin(), island.end(), 0);
+  const std::function<int32_t(int32_t)> root = [&](int32_t i) {
+    return island[size_t(i)] == i ? i : island[size_t(i)] = root(island[size_t(i)]);
+  };
+  for (Eigen::Index k = 0; k < edges.rows(); ++k) {
+    const int32_t a = edges(k, 0), b = edges(k, 1);
+    if (!m[a] && !m[b]) island[size_t(root(a))] = root(b);
   }
-  if (pinned) *pinned = 0;
-  if (std::find(has_body.begin(), has_body.end(), 1) == has_body.end()) return out;  // no body to hang from
-  for (int k = 0; k < count; ++k) {
-    std::vector<int64_t>& piece = members[static_cast<size_t>(k)];
-    if (has_body[static_cast<size_t>(k)]) continue;
-    const size_t held = std::min(piece.size(), static_cast<size_t>(std::ceil(share * double(piece.size()) - 1e-9)));
-    // Lowest p̂ first; ties by index, so the result does not depend on the sort's implementation.
-    std::partial_sort(piece.begin(), piece.begin() + static_cast<std::ptrdiff_t>(held), piece.end(),
-                      [q](int64_t a, int64_t b) { return q[a] < q[b] || (q[a] == q[b] && a < b); });
-    for (size_t j = 0; j < held; ++j) m[piece[j]] = false;
-    if (pinned) ++*pinned;
+  std::vector<std::vector<int64_t>> members(static_cast<size_t>(count));
+  for (int64_t i = 0; i < N; ++i) members[static_cast<size_t>(part[i])].push_back(i);
+  for (std::vector<int64_t>& piece : members) {
+    int64_t apparel = 0;
+    std::map<int32_t, std::pair<int64_t, double>> islands;  // root -> (size, sum of p̂)
+    for (const int64_t i : piece) {
+      if (m[i]) {
+        ++apparel;
+      } else {
+        auto& [size, sum] = islands[root(static_cast<int32_t>(i))];
+        ++size, sum += q[i];
+      }
+    }
+    if (2 * apparel < static_cast<int64_t>(piece.size())) continue;  // mostly body: a body part, left alone
+    if (islands.empty()) {
+      // Floating: its vertices of lowest p̂ hold it (ties by index, whatever the sort's implementation).
+      const size_t held = std::min(piece.size(), static_cast<size_t>(std::ceil(share * double(piece.size()) - 1e-9)));
+      std::partial_sort(piece.begin(), piece.begin() + static_cast<std::ptrdiff_t>(held), piece.end(),
+                        [q](int64_t a, int64_t b) { return q[a] < q[b] || (q[a] == q[b] && a < b); });
+      for (size_t j = 0; j < held; ++j) m[piece[j]] = false;
+      if (hung) ++hung->pinned;
+    } else if (islands.size() > 1) {
+      // Held in several places: by the largest island (ties: the lower mean p̂, then the lower root); the others
+      // would nail the piece to the body mid-way, so they are apparel.
+      int32_t keep = -1;
+      std::pair<int64_t, double> best{0, 0.0};
+      for (const auto& [r, island_stats] : islands) {
+        const auto& [size, sum] = island_stats;
+        if (keep < 0 || size > best.first || (size == best.first && sum / size < best.second / best.first)) {
+          keep = r, best = island_stats;
+        }
+      }
+      for (const int64_t i : piece) {
+        if (!m[i] && root(static_cast<int32_t>(i)) != keep) m[i] = true;
+      }
+      if (hung) hung->unnailed += static_cast<int>(islands.size()) - 1;
+    }
   }
   return out;
 }
@@ -286,7 +321,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());
     c.apparel_mask = options.apparel_mask.to(at::kBool).contiguous();
   } else {
-    c.apparel_mask = pin_floating_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e));
+    c.apparel_mask = hang_apparel_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e));
   }
   c.refiner_prob = c.apparel_mask.to(at::kFloat);
   c.apparel_ids = at::nonzero(c.apparel_mask).flatten().contiguous();

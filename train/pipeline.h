@@ -112,8 +112,8 @@ struct BoundCharacter {
   at::Tensor edges;
   /// apparel_prob (N) float p̂ of the segmenter (computed even when the mask is overridden).
   at::Tensor apparel_prob;
-  /// apparel_mask (N) bool, the mask in use: the override, or p̂ > 0.5 with floating pieces pinned
-  /// (pin_floating_pieces).
+  /// apparel_mask (N) bool, the mask in use: the override, or p̂ > 0.5 with each piece made to hang from one
+  /// place (hang_apparel_pieces).
   at::Tensor apparel_mask;
   /// refiner_prob (N) float, the apparel input of the refiner: the mask in use as 0/1, the form the
   /// refiner is trained with.
@@ -155,17 +155,24 @@ struct BoundCharacter {
   }
 };
 
-/// The share of a floating piece held by the body (pin_floating_pieces).
+/// The share of a floating piece held by the body (hang_apparel_pieces).
 inline constexpr double kFloatingPiecePinShare = 0.05;
 
-/// The segmenter's mask made to hang from the body. A connected part of the mesh (by `edges`) that `mask` calls
-/// apparel from end to end, while the mesh has body vertices elsewhere, would float free: the apparel module learned
-/// pieces held by their first rows (the dataset's pieces hang from 4-27 % of their vertices, which a body bone holds
-/// rigidly and the ground truth calls body), and a piece with none drifts away from the character. Its
-/// ceil(share * size) vertices of lowest p̂ (where the segmenter doubts, next to where the piece is held) become
-/// body. mask (N) bool, prob (N) float; returns the new mask and, in `pinned`, the number of pieces pinned.
-at::Tensor pin_floating_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges,
-                               double share = kFloatingPiecePinShare, int* pinned = nullptr);
+/// What hang_apparel_pieces changed: pieces pinned, and body islands made apparel.
+struct HungPieces {
+  int pinned = 0, unnailed = 0;
+};
+
+/// The segmenter's mask made to hang from the body as the dataset's pieces do: each piece hangs from one place, a
+/// single region of its first rows that a body bone holds rigidly and the ground truth calls body (4-27 % of a
+/// piece). For every connected part of the mesh (by `edges`) that the mask calls at least half apparel:
+/// - with no body vertex (on a mesh with body elsewhere) it would float free and drift off the character (the
+///   apparel module learned pieces that are held): its ceil(share * size) vertices of lowest p̂ become body;
+/// - with several body islands (body vertices joined by body-body edges) it would be nailed to the body mid-way
+///   (strands torn where the mask misses a few vertices): the largest island stays, the others become apparel.
+/// Parts mostly body are left alone. mask (N) bool, prob (N) float; returns the new mask.
+at::Tensor hang_apparel_pieces(const at::Tensor& mask, const at::Tensor& prob, const MatrixX2i& edges,
+                               double share = kFloatingPiecePinShare, HungPieces* hung = nullptr);
 
 /// The segmenter's p̂ (N) (eq. 2) of a rest mesh (V, F) with rest joints on the bundle's skeleton (J, 3),
 /// its shape features computed here (segmentation_features). Throws amt::Error on a mesh without

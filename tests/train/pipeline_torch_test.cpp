@@ -140,35 +140,38 @@ TEST(PipelineBundle, SegmenterCheckpointsOfEachInputsLoadAndReadTheirOwnFeatures
 
 // === Bind
 
-// A piece the mask calls apparel from end to end hangs from its vertices of lowest p̂ (ceil(share * size) of them,
-// ties by index); a piece that already has a body vertex, and a mesh with no body at all, keep their masks.
-TEST(PipelineBind, FloatingPiecesArePinnedAtTheirLowestProbabilities) {
-  // Three chains: body 0-3 (body), piece 4-23 (all apparel, p falling from 0.99 to 0.80 but for vertices 10 and 11
-  // at 0.55), piece 24-27 (apparel but vertex 24, body).
+// Each piece hangs from one place: a piece the mask calls apparel from end to end is held by its vertices of lowest
+// p̂ (ceil(share * size) of them, ties by index); a piece held in several places keeps its largest body island; a
+// part mostly body, and a mesh with no body at all, keep their masks.
+TEST(PipelineBind, ApparelPiecesHangFromOnePlace) {
+  // Four chains: 0-3 body but vertex 2 (two body islands, but mostly body); 4-23 all apparel, p̂ falling from
+  // 0.99 to 0.80 but for vertices 10 and 11 at 0.55; 24-27 apparel but vertex 24; 28-39 apparel but 28, 29 and
+  // 34 (two islands: {28, 29} and the nail {34}).
   std::vector<std::pair<int, int>> chain;
-  for (const auto& [first, last] : {std::pair{0, 3}, std::pair{4, 23}, std::pair{24, 27}})
+  for (const auto& [first, last] : {std::pair{0, 3}, std::pair{4, 23}, std::pair{24, 27}, std::pair{28, 39}})
     for (int i = first; i < last; ++i) chain.emplace_back(i, i + 1);
   MatrixX2i E(static_cast<Eigen::Index>(chain.size()), 2);
   for (size_t k = 0; k < chain.size(); ++k) E.row(Eigen::Index(k)) << chain[k].first, chain[k].second;
-  at::Tensor mask = at::ones({28}, at::kBool), prob = at::full({28}, 0.9f);
-  for (int i = 0; i < 4; ++i) mask[i] = false, prob[i] = 0.1f;
+  at::Tensor mask = at::ones({40}, at::kBool), prob = at::full({40}, 0.9f);
+  for (const int i : {0, 1, 3, 24, 28, 29, 34}) mask[i] = false, prob[i] = 0.2f;
+  prob[34] = 0.45f;
   for (int i = 4; i < 24; ++i) prob[i] = 0.99f - 0.01f * float(i - 4);
   prob[10] = prob[11] = 0.55f;
-  mask[24] = false;
-  prob[24] = 0.3f;
 
-  int pinned = -1;
-  const at::Tensor one = pin_floating_pieces(mask, prob, E, 0.05, &pinned);  // ceil(0.05 * 20) = 1
-  EXPECT_EQ(pinned, 1);
+  HungPieces hung;
+  const at::Tensor one = hang_apparel_pieces(mask, prob, E, 0.05, &hung);  // ceil(0.05 * 20) = 1
+  EXPECT_EQ(hung.pinned, 1);
+  EXPECT_EQ(hung.unnailed, 1);
   at::Tensor expected = mask.clone();
   expected[10] = false;  // 0.55 twice: the lower index
+  expected[34] = true;   // the nail
   EXPECT_TRUE(at::equal(one, expected)) << one;
-  const at::Tensor three = pin_floating_pieces(mask, prob, E, 0.15);  // 0.15 * 20 = 3: 10, 11, then 23 (0.80)
+  const at::Tensor three = hang_apparel_pieces(mask, prob, E, 0.15);  // 0.15 * 20 = 3: 10, 11, then 23 (0.80)
   expected[11] = expected[23] = false;
   EXPECT_TRUE(at::equal(three, expected)) << three;
-  EXPECT_TRUE(at::equal(pin_floating_pieces(at::ones({28}, at::kBool), prob, E, 0.05), at::ones({28}, at::kBool)))
+  EXPECT_TRUE(at::equal(hang_apparel_pieces(at::ones({40}, at::kBool), prob, E, 0.05), at::ones({40}, at::kBool)))
       << "no body anywhere: nothing to hang from";
-  EXPECT_NE(test::error_of([&] { pin_floating_pieces(mask, prob.narrow(0, 0, 5), E); }).find("pin_floating_pieces"),
+  EXPECT_NE(test::error_of([&] { hang_apparel_pieces(mask, prob.narrow(0, 0, 5), E); }).find("hang_apparel_pieces"),
             std::string::npos);
 }
 
