@@ -13,8 +13,8 @@
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (12000), SKINNING_STEPS (6000, also for each Table 4
-# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000) and APPAREL_STEPS
-# (3000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
+# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (40000) and APPAREL_STEPS
+# (8000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
 # weights).
@@ -28,7 +28,7 @@
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
 # with normalised inputs and target and contact inputs (its nearest body vertex), noise on its input
-# history; first 30000 one-step steps, then from that network a curriculum of rollouts (5, then 20
+# history; first 40000 one-step steps, then from that network a curriculum of rollouts (5, then 20
 # frames; a fifth of the windows rolled out from the rest pose) with up to 40 frames of free run on its
 # own predictions before them (pushforward); the per-vertex distance as the loss.
 set -euo pipefail
@@ -110,11 +110,11 @@ if [[ $modules == *" apparel "* ]]; then
       return 1
     fi
     run apparel_one_step apparel "${base[@]}" "${skinning_args[@]}" --out "$out/apparel_one_step" --lr 5e-4 \
-      --steps "${APPAREL_ONE_STEP_STEPS:-30000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
+      --steps "${APPAREL_ONE_STEP_STEPS:-40000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
       --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.003 --apparel-options "$apparel" &&
       run apparel apparel "${base[@]}" "${skinning_args[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
         --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
-        --steps "${APPAREL_STEPS:-3000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
+        --steps "${APPAREL_STEPS:-8000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
         --noise 0.003 --rest-start 0.2 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" \
