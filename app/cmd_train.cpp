@@ -218,6 +218,11 @@ void add_train_command(CLI::App& app) {
   train->add_flag("--no-segmenter-augment", [command](int64_t) { command->options.segmenter_augment = false; },
                   "Segmenter with inputs welded: train on the characters as built only (no open-parts, bare-body, "
                   "mirrored, turned or scaled variants)");
+  train->add_option("--segmenter-held-weight", command->options.segmenter_held_weight,
+                    "Segmenter: loss weight of the held rows, the body vertices of parts that also hold apparel "
+                    "(where a piece hangs from the body)")
+      ->check(CLI::Range(0.01, 1000.0))
+      ->capture_default_str();
   train->add_flag("--quiet", command->quiet, "No progress line on stderr");
   DistributedOptions& d = command->distributed;
   train

@@ -16,13 +16,16 @@ at::Tensor safe_norm(const at::Tensor& x, double eps) { return (x.square().sum(-
 
 }  // namespace
 
-at::Tensor apparel_bce_loss(const at::Tensor& logits, const at::Tensor& mask, double pos_weight) {
+at::Tensor apparel_bce_loss(const at::Tensor& logits, const at::Tensor& mask, double pos_weight,
+                            const at::Tensor& vertex_weights) {
   TORCH_CHECK(logits.sizes() == mask.sizes(), "apparel_bce_loss: logits ", logits.sizes(), " and mask ", mask.sizes(),
               " differ");
   TORCH_CHECK(pos_weight > 0, "apparel_bce_loss: pos_weight must be positive");
   const at::Tensor target = mask.to(logits.scalar_type());
   const at::Tensor weight = pos_weight == 1.0 ? at::Tensor() : at::full({}, pos_weight, logits.options());
-  return at::binary_cross_entropy_with_logits(logits, target, {}, weight, at::Reduction::Mean);  // eq. (3)
+  TORCH_CHECK(!vertex_weights.defined() || vertex_weights.sizes() == logits.sizes(), "apparel_bce_loss: vertex ",
+              "weights ", vertex_weights.sizes(), " and logits ", logits.sizes(), " differ");
+  return at::binary_cross_entropy_with_logits(logits, target, vertex_weights, weight, at::Reduction::Mean);  // eq. (3)
 }
 
 at::Tensor vertex_l1_loss(const at::Tensor& pred, const at::Tensor& gt) {

@@ -11,8 +11,10 @@ namespace amt {
 /// eq. (3), apparel segmentation: the standard binary cross entropy of the logits against the
 /// ground-truth mask, mean over vertices. (The paper's eq. 3 swaps p̂ and p̄ and drops the minus
 /// sign; this is the usual -[p̄ log p̂ + (1 - p̄) log(1 - p̂)], computed stably from the logits.)
-///   logits (..., N), mask (..., N) 0/1 (any dtype); pos_weight > 0 scales the apparel (positive) terms.
-at::Tensor apparel_bce_loss(const at::Tensor& logits, const at::Tensor& mask, double pos_weight = 1.0);
+///   logits (..., N), mask (..., N) 0/1 (any dtype); pos_weight > 0 scales the apparel (positive) terms;
+///   vertex_weights (..., N), when defined, scales each vertex's term (the mean stays over vertices).
+at::Tensor apparel_bce_loss(const at::Tensor& logits, const at::Tensor& mask, double pos_weight = 1.0,
+                            const at::Tensor& vertex_weights = {});
 
 /// eq. (8) and (14), vertex loss: the L1 norm of each vertex's error (|dx| + |dy| + |dz|), averaged
 /// over vertices (and frames). pred, gt (..., N, 3).

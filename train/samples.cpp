@@ -236,6 +236,8 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
         return float_tensor(X.data(), {X.rows(), X.cols()});
       };
       t->segmenter_features = features_of(data.mesh);
+      const double held = options_.segmenter_held_weight;
+      if (held != 1.0) t->segmenter_weights = held_rows_weights(data.apparel_mask, data.mesh.F, held);
       if (options_.segmenter_variants) {
         const SegmenterExample e{data.mesh, data.skeleton, data.body_weights, data.apparel_mask};
         const auto add = [&](const std::string& what, const SegmenterExample& v) {
@@ -243,7 +245,8 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
           if (n == 0 || v.mesh.num_faces() == 0) return;  // e.g. a character that is all apparel: no bare body
           t->segmenter_variants.push_back(
               {what, float_tensor(v.mesh.V.data(), {n, 3}), features_of(v.mesh),
-               at::from_blob(const_cast<uint8_t*>(v.apparel_mask.data()), {n}, at::kByte).to(at::kBool)});
+               at::from_blob(const_cast<uint8_t*>(v.apparel_mask.data()), {n}, at::kByte).to(at::kBool),
+               held != 1.0 ? held_rows_weights(v.apparel_mask, v.mesh.F, held) : at::Tensor()});
         };
         add("bare_body", bare_body_example(e));
         // Open parts need the canonical skeleton's body (open_parts_example); other characters go
@@ -280,6 +283,19 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     c.tensors = std::move(t);
   });
   return c.tensors;
+}
+
+at::Tensor held_rows_weights(const std::vector<uint8_t>& mask, const MatrixX3i& F, double weight) {
+  const int N = static_cast<int>(mask.size());
+  int count = 0;
+  const std::vector<int32_t> part = connected_components(N, unique_edges(F), &count);
+  std::vector<uint8_t> holds_apparel(static_cast<size_t>(count), 0);
+  for (int i = 0; i < N; ++i) holds_apparel[static_cast<size_t>(part[size_t(i)])] |= mask[size_t(i)];
+  at::Tensor w = at::ones({N}, at::kFloat);
+  float* out = w.data_ptr<float>();
+  for (int i = 0; i < N; ++i)
+    if (!mask[size_t(i)] && holds_apparel[static_cast<size_t>(part[size_t(i)])]) out[i] = static_cast<float>(weight);
+  return w;
 }
 
 std::shared_ptr<const CharacterTensors> SampleSource::character(int index) {

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "data_tools/geometry/types.h"
 #include "models/apparel_dynamics.h"
 #include "train/checkpoint.h"
 
@@ -72,15 +73,23 @@ struct CharacterTensors {
   /// segmenter_features (N, kSegmentationFeatures) float shape features of the rest mesh
   /// (segmentation_features); computed only for the segmenter, else undefined.
   at::Tensor segmenter_features;
+  /// segmenter_weights (N) float, the segmenter's per-vertex loss weights (held_rows_weights with
+  /// SampleSourceOptions::segmenter_held_weight); undefined when that weight is 1. Variants carry theirs.
+  at::Tensor segmenter_weights;
   /// With SampleSourceOptions::segmenter_variants: the character remade for augmentation, each with its
   /// own V (N', 3), features (N', kSegmentationFeatures) and apparel mask (N') bool
   /// (data_tools/builder/segmenter_augmentation.h): open parts, bare body, bare open parts.
   struct SegmenterVariant {
     std::string what;
-    at::Tensor V, features, apparel_mask;
+    at::Tensor V, features, apparel_mask, weights;
   };
   std::vector<SegmenterVariant> segmenter_variants;
 };
+
+/// Per-vertex loss weights of the segmenter: `weight` on the held rows, the body vertices of the mesh's connected
+/// parts that also hold apparel (where a piece hangs from the body: a body bone holds them rigidly, and the
+/// apparel module needs them body, hang_apparel_pieces), 1 elsewhere. mask (N) 0/1, F (F, 3).
+at::Tensor held_rows_weights(const std::vector<uint8_t>& mask, const MatrixX3i& F, double weight);
 
 // === Samples
 
@@ -120,6 +129,8 @@ struct SampleSourceOptions {
   std::string segmenter_inputs = "shape";
   /// The segmenter: also make CharacterTensors::segmenter_variants.
   bool segmenter_variants = false;
+  /// The segmenter: loss weight of the held rows (held_rows_weights); 1 for none.
+  double segmenter_held_weight = 1.0;
   /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):
   /// "nearest" (the global form's and the earlier local checkpoints') or "attachment".
   std::string apparel_anchor = "nearest";

@@ -52,6 +52,7 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["window"] = o.window;
   j["skinning_frames"] = o.skinning_frames;
   j["segmenter_pos_weight"] = o.segmenter_pos_weight;
+  if (o.segmenter_held_weight != 1.0) j["segmenter_held_weight"] = o.segmenter_held_weight;
   j["unroll"] = o.unroll;
   j["history_noise"] = o.history_noise;
   j["noise_gamma"] = o.noise_gamma;
@@ -103,6 +104,7 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   get(j, "window", o.window, "");
   get(j, "skinning_frames", o.skinning_frames, "");
   get(j, "segmenter_pos_weight", o.segmenter_pos_weight, "");
+  get(j, "segmenter_held_weight", o.segmenter_held_weight, "");
   if (const auto unroll = j.find("unroll"); unroll != j.end()) {
     AMT_CHECK(unroll->is_string(), path, ": config.unroll: expected a string, found ", unroll->dump());
     o.unroll = unroll->get<std::string>();
@@ -165,17 +167,17 @@ struct Task {
 // turned, the other columns are distances over the height and part shares, which none of these change.
 // A function of (seed, step, the character's name).
 struct SegmenterInput {
-  at::Tensor V, features, apparel_mask;
+  at::Tensor V, features, apparel_mask, weights;
 };
 SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t seed, int64_t step) {
   std::seed_seq seq{uint64_t(seed), uint64_t(step), uint64_t(std::hash<std::string>{}(c.name)), uint64_t(0x5e6)};
   std::mt19937_64 rng(seq);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  SegmenterInput in{c.V, c.segmenter_features, c.apparel_mask};
+  SegmenterInput in{c.V, c.segmenter_features, c.apparel_mask, c.segmenter_weights};
   const double u = unit(rng);
   const char* what = u < 0.6 ? "" : u < 0.8 ? "open_parts" : u < 0.9 ? "bare_body" : "bare_open_parts";
   for (const auto& v : c.segmenter_variants)
-    if (v.what == what) in = {v.V, v.features, v.apparel_mask};
+    if (v.what == what) in = {v.V, v.features, v.apparel_mask, v.weights};
   const bool mirror = unit(rng) < 0.5;
   const double angle = (unit(rng) * 2.0 - 1.0) * 2.0 * M_PI / 180.0;
   const double scale = 0.85 + 0.3 * unit(rng);
@@ -423,11 +425,12 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       task.loss = [net, pos_weight, augment, seed](const TrainingSample& s, int64_t step, bool validating) mutable {
         const CharacterTensors& c = *s.character;
         if (!augment || validating) {
-          const at::Tensor bce = apparel_bce_loss(net->forward(c.V, c.segmenter_features), c.apparel_mask, pos_weight);
+          const at::Tensor bce = apparel_bce_loss(net->forward(c.V, c.segmenter_features), c.apparel_mask, pos_weight,
+                                                  validating ? at::Tensor() : c.segmenter_weights);
           return std::vector<at::Tensor>{bce, bce};  // eq. (3)
         }
         const SegmenterInput in = augmented_segmenter_input(c, seed, step);
-        const at::Tensor bce = apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight);
+        const at::Tensor bce = apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight, in.weights);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
       };
       break;
@@ -733,6 +736,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     if (!network_infos.empty()) options_from_json(network_infos[0].options_json, network_paths[0], segmenter);
     sampling.segmenter_inputs = segmenter.inputs;
     sampling.segmenter_variants = segmenter.inputs == "welded" && o.segmenter_augment;
+    sampling.segmenter_held_weight = o.segmenter_held_weight;
   }
   sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;
   sampling.clip_start_fraction = local_apparel ? o.rest_start_fraction : 0.0;

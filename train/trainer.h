@@ -96,6 +96,9 @@ struct TrainOptions {
   /// probability 1/2, turns it about the vertical by up to 2 degrees and scales it by 0.85 to 1.15;
   /// seeded by --seed, the step and the character). Validation sees the characters as built.
   bool segmenter_augment = true;
+  /// (run) Segmenter: loss weight of the held rows (held_rows_weights: body vertices of parts that hold apparel,
+  /// where a piece hangs from the body); 1 for none.
+  double segmenter_held_weight = 1.0;
   /// Write the checkpoint every this many steps (0: only at the end).
   int64_t checkpoint_every = 1000;
   /// Validate every this many steps and at the last step (0: never): the mean loss, under

@@ -30,6 +30,11 @@ TEST(Losses, ApparelBceIsStandardBinaryCrossEntropy) {
   EXPECT_NEAR(apparel_bce_loss(logits, mask).item<double>(), expected, 1e-12);
   // pos_weight scales the apparel term only.
   EXPECT_NEAR(apparel_bce_loss(logits, mask, 3.0).item<double>(), 0.5 * (-3 * std::log(0.5) - std::log(0.25)), 1e-12);
+  // Per-vertex weights scale each term; the mean stays over the vertices.
+  const at::Tensor weights = at::tensor({1.0, 4.0}, logits.options());
+  EXPECT_NEAR(apparel_bce_loss(logits, mask, 1.0, weights).item<double>(), 0.5 * (-std::log(0.5) - 4 * std::log(0.25)),
+              1e-12);
+  EXPECT_THROW(apparel_bce_loss(logits, mask, 1.0, at::ones({3}, logits.options())), c10::Error);
 }
 
 TEST(Losses, VertexL1SumsXyzAndAveragesVertices) {
@@ -112,6 +117,11 @@ TEST(Losses, GradientsMatchFiniteDifferences) {
 
   EXPECT_LT(test::max_gradient_error([&](const at::Tensor& x) { return apparel_bce_loss(x, mask, 2.0); },
                                      at::randn({5}, kDouble)),
+            1e-7);
+  const at::Tensor vertex_weights = at::tensor({1.0, 5.0, 1.0, 0.5, 2.0}, kDouble);
+  EXPECT_LT(test::max_gradient_error(
+                [&](const at::Tensor& x) { return apparel_bce_loss(x, mask, 2.0, vertex_weights); },
+                at::randn({5}, kDouble)),
             1e-7);
   EXPECT_LT(test::max_gradient_error([&](const at::Tensor& x) { return vertex_l1_loss(x, gt); }, pred), 1e-7);
   EXPECT_LT(test::max_gradient_error([&](const at::Tensor& x) { return edge_length_loss(x, rest, edges); }, pred),

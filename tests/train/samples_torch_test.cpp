@@ -128,5 +128,18 @@ TEST(Samples, SequenceDependsOnSeedAndIndexOnly) {
   EXPECT_GT(differ, 0);
 }
 
+// The segmenter's held rows: the body vertices of the parts that also hold apparel (where a piece hangs), not the
+// body's own part, nor a part that is apparel alone.
+TEST(Samples, HeldRowsAreTheBodyVerticesOfPartsThatHoldApparel) {
+  MatrixX3i F(4, 3);
+  F << 0, 1, 2,   // the body: body vertices only
+      3, 4, 5,    // a piece: 3 is held (body), 4-6 hang
+      4, 5, 6,
+      7, 8, 9;    // a piece of apparel alone
+  const std::vector<uint8_t> mask = {0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
+  const at::Tensor w = held_rows_weights(mask, F, 5.0);
+  EXPECT_TRUE(at::equal(w, at::tensor({1.0f, 1.0f, 1.0f, 5.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f}))) << w;
+}
+
 }  // namespace
 }  // namespace amt
