@@ -104,7 +104,8 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   get(j, "window", o.window, "");
   get(j, "skinning_frames", o.skinning_frames, "");
   get(j, "segmenter_pos_weight", o.segmenter_pos_weight, "");
-  get(j, "segmenter_held_weight", o.segmenter_held_weight, "");
+  // Written only when not 1, so that the configs of earlier checkpoints and of unweighted runs stay as they were.
+  if (j.contains("segmenter_held_weight")) get(j, "segmenter_held_weight", o.segmenter_held_weight, "");
   if (const auto unroll = j.find("unroll"); unroll != j.end()) {
     AMT_CHECK(unroll->is_string(), path, ": config.unroll: expected a string, found ", unroll->dump());
     o.unroll = unroll->get<std::string>();
