@@ -12,7 +12,7 @@
 #
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
-# the steps of each run: SEGMENTER_STEPS (12000), SKINNING_STEPS (6000, also for each Table 4
+# the steps of each run: SEGMENTER_STEPS (30000), SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (40000) and APPAREL_STEPS
 # (8000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
@@ -23,7 +23,9 @@
 # with one thread beside them (after the skinning runs when it uses the predictor trained here), then
 # the refiner on its rollouts. Every run uses AdamW at 5e-4 with a
 # cosine decay to 0 (the paper's 1e-4 is for far longer training than this budget). Settings beyond
-# the paper, measured in models/pretrained/README.md: the skinning predictor adds a direct KL loss on
+# the paper, measured in models/pretrained/README.md: the segmenter reads welded shape features, trains on
+# augmented characters (open parts, bare bodies) and weighs the held rows, where a piece hangs from the
+# body, 5 times (--segmenter-held-weight 5); the skinning predictor adds a direct KL loss on
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
@@ -78,7 +80,8 @@ launch() {  # launch NAME ARGS...: one run in the background, its output in <out
   names+=("$name")
 }
 if [[ $modules == *" segmenter "* ]]; then
-  launch segmenter segmenter "${common[@]}" --steps "${SEGMENTER_STEPS:-12000}" --segmenter-options "$segmenter"
+  launch segmenter segmenter "${common[@]}" --steps "${SEGMENTER_STEPS:-30000}" --segmenter-held-weight 5 \
+    --segmenter-options "$segmenter"
 fi
 if [[ $modules == *" skinning "* ]]; then
   launch skinning skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
