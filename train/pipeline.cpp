@@ -243,8 +243,9 @@ at::Tensor hang_apparel_pieces(const at::Tensor& mask, const at::Tensor& prob, c
   // Body islands: body vertices joined by body-body edges, within their part.
   std::vector<int32_t> island(static_cast<size_t>(N));
   std::iota(island.begin(), island.end(), 0);
-  const std::function<int32_t(int32_t)> root = [&](int32_t i) {
-    return island[size_t(i)] == i ? i : island[size_t(i)] = root(island[size_t(i)]);
+  const auto root = [&](int32_t i) {  // iterative, with path halving: no recursion depth on large meshes
+    while (island[size_t(i)] != i) i = island[size_t(i)] = island[size_t(island[size_t(i)])];
+    return i;
   };
   for (Eigen::Index k = 0; k < edges.rows(); ++k) {
     const int32_t a = edges(k, 0), b = edges(k, 1);
