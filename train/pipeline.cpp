@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <numeric>
 #include <map>
-#include <functional>
 #include <sstream>
 
 #include "data_tools/geometry/error.h"

@@ -34,6 +34,17 @@ bool contains(const std::vector<std::string>& lines, const std::string& a, const
   return false;
 }
 
+// A short build of PMX models alone: `clips` procedural clips of `frames` frames, settled briefly.
+DatasetBuildOptions pmx_build_options(int clips, int frames) {
+  DatasetBuildOptions o;
+  o.characters = 0;
+  o.procedural = clips;
+  o.frames = frames;
+  o.settle_seconds = 0.1f;
+  o.blend_seconds = 0.2f;
+  return o;
+}
+
 // A turn of bone 0 about the model's Z axis by `angle` radians (its rest position kept), every other bone carried.
 Transforms turned_fixture_pose(const PhysicsRig& rig, float angle) {
   Transforms pose = physics_rest_pose(rig);
@@ -261,14 +272,9 @@ TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
   const std::filesystem::path dir = test::temp_dir("pmx_dataset_build");
   const std::string model = (dir / "humanoid.pmx").string();
   write_pmx(test::pmx_humanoid(), model);
-  DatasetBuildOptions o;
+  DatasetBuildOptions o = pmx_build_options(2, 10);
   o.out = (dir / "ds").string();
-  o.characters = 0;
   o.pmx = {model};
-  o.procedural = 2;
-  o.frames = 10;
-  o.settle_seconds = 0.1f;
-  o.blend_seconds = 0.2f;
   const DatasetBuildReport report = build_dataset(o);
   EXPECT_EQ(report.characters_built, 1);
   EXPECT_EQ(report.clips_built, 2);
@@ -295,12 +301,7 @@ TEST(PmxDataset, BuildFromAPmxFileRecordsItAndRefusesOtherFiles) {
 // map so that a rerun with an edited map is refused. The refusal leaves no manifest, so the rerun with the map starts.
 TEST(PmxDataset, AJointMapMapsBonesTheNameTableCannot) {
   const std::filesystem::path dir = test::temp_dir("pmx_dataset_joint_map");
-  DatasetBuildOptions o;
-  o.characters = 0;
-  o.procedural = 1;
-  o.frames = 8;
-  o.settle_seconds = 0.1f;
-  o.blend_seconds = 0.2f;
+  DatasetBuildOptions o = pmx_build_options(1, 8);
   const std::string named = (dir / "named" / "humanoid.pmx").string(),
                     renamed = (dir / "renamed" / "humanoid.pmx").string();
   std::filesystem::create_directories(dir / "named");
