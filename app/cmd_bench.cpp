@@ -35,6 +35,7 @@
 #include "data_tools/geometry/retarget.h"
 #include "data_tools/geometry/threads.h"
 #include "infer/glb_stream_writer.h"
+#include "infer/runtime_benchmark_torch.h"
 #include "infer/runtime_torch.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_overfit.h"
@@ -98,25 +99,7 @@ double median_seconds(int repeats, const std::function<void()>& fn) {
   return median_times(repeats, fn).wall;
 }
 
-double peak_resident_mb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;
-}
 
-// Current resident memory (VmRSS), MB.
-double resident_mb() {
-  std::ifstream status("/proc/self/status");
-  std::string key;
-  while (status >> key) {
-    if (key == "VmRSS:") {
-      double kb = 0;
-      status >> kb;
-      return kb / 1024.0;
-    }
-  }
-  return 0.0;
-}
 
 // LBS throughput with 4 influences per vertex over frames of a walk.
 void bench_lbs(const BenchOptions& o) {
@@ -171,12 +154,6 @@ void bench_skinning(const BenchOptions& o) {
 }
 
 
-// Median and 95th percentile of a sample (seconds), sorted in place.
-std::pair<double, double> median_p95(std::vector<double>& v) {
-  std::sort(v.begin(), v.end());
-  const size_t p95 = std::min(v.size() - 1, size_t(std::ceil(0.95 * double(v.size()))) - 1);
-  return {v[v.size() / 2], v[p95]};
-}
 
 // The shipped networks when `dir` holds them, else freshly initialised ones of the default options
 // (seeded): the per-frame cost depends on the architecture, not on the weights.
@@ -203,12 +180,6 @@ ModelBundle bench_bundle(const std::string& given, std::string& what) {
   return b;
 }
 
-// Open-parts characters of the runtime suite: the body's share of the requested size before the parts'
-// copies and the cap, and the apparel fraction, chosen so that a requested size of about 14.5k gives
-// about that many vertices with 10-30 % apparel.
-constexpr float kOpenPartsBodyShare = 0.66f;
-constexpr float kOpenPartsApparelFraction = 0.2f;
-
 // The runtime (issue 6): generated dressed characters of about `size` vertices with ~30 % apparel,
 // bind time, per-frame latency (median, p95) and its split, peak memory, on 1 and 2 threads. With
 // --open-parts the characters are remade as real models are built (data_tools/builder/open_parts.h):
@@ -219,89 +190,29 @@ void bench_runtime(const BenchOptions& o) {
   std::printf("runtime   %s; apparel mask from %s; walk motion; %d timed frames after a 10-frame lead-in%s\n",
               what.c_str(), o.segmenter_mask ? "the segmenter" : "the dressed character (the GT-mask row)", o.repeats,
               o.open_parts ? "; bodies of open, overlapping parts (--open-parts)" : "");
-  const std::string scratch = (std::filesystem::temp_directory_path() / ("amt_bench_" + std::to_string(::getpid()))).string();
-  std::filesystem::create_directories(scratch);
   for (const int size : o.runtime_sizes) {
-    set_thread_count(o.runtime_threads.back());
-    const auto gen_start = std::chrono::steady_clock::now();
-    ApparelOptions dress;
-    dress.vertex_fraction = o.open_parts ? kOpenPartsApparelFraction : 0.3f;
-    dress.min_pieces = 2;
-    dress.max_pieces = 3;
-    const float body_share = o.open_parts ? kOpenPartsBodyShare : 0.7f;
-    const GeneratedBody body = generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(size * body_share)));
-    // Open parts: the items of the issue's real model (twin tails, a skirt on physics chains, a tie).
-    const DressedCharacter dressed =
-        o.open_parts ? dress_character_with(body, {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails, ApparelKind::kRibbons}, 7, dress)
-                     : dress_character(body, 7, dress);
-    TriMesh mesh = dressed.mesh;
-    std::vector<uint8_t> mask = dressed.apparel_mask;
-    std::string parts;
-    if (o.open_parts) {
-      OpenPartsCharacter open = open_parts_character(dressed);
-      parts = ", " + std::to_string(open.num_parts) + " open body parts, " + std::to_string(open.dropped_faces) +
-              " body faces dropped under the clothes";
-      mesh = std::move(open.mesh);
-      mask = std::move(open.apparel_mask);
+    RuntimeBenchmarkOptions options;
+    options.vertices = size;
+    options.open_parts = o.open_parts;
+    options.segmenter_mask = o.segmenter_mask;
+    options.threads = o.runtime_threads;
+    options.repeats = o.repeats;
+    const RuntimeFigures r = measure_runtime(bundle, options);
+    const int N = r.vertices;
+    std::printf("runtime   %6d vertices (%d apparel, %.0f %%; as built %d, %.0f %%), %d faces: %s; bind %.2f s (%d threads)\n",
+                N, r.apparel_vertices, 100.0 * r.apparel_vertices / N, r.true_apparel_vertices,
+                100.0 * r.true_apparel_vertices / N, r.faces, r.character.c_str(), r.bind_seconds, o.runtime_threads.back());
+    for (const RuntimeThreadFigures& t : r.per_thread) {
+      std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
+                  "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
+                  "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
+                  "RSS %.0f MB, peak %.0f MB\n",
+                  N, t.threads, t.threads > 1 ? "s" : "", t.median_ms, t.p95_ms, 1e3 / t.median_ms, t.model_ms, t.lbs_ms,
+                  t.apparel_ms, t.refiner_ms, t.penetration_ms, t.output_ms, 100.0 * t.inside_before,
+                  100.0 * t.inside_after, 100.0 * t.carried_share, t.resident_mb, r.peak_resident_mb);
     }
-    const double gen_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - gen_start).count();
-    const int N = mesh.num_vertices();
-    const BindResult bind =
-        bind_cached(bundle, mesh, body.skeleton.rest_joints, o.segmenter_mask ? std::vector<uint8_t>{} : mask, "");
-    const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
-    mask.assign(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel());
-    int Na = 0;
-    for (uint8_t m : mask) Na += m;
-    std::printf("runtime   %6d vertices (%d apparel, %.0f %%), %d faces%s: generated in %.1f s, bind %.2f s (%d threads)\n",
-                N, Na, 100.0 * Na / N, mesh.num_faces(), parts.c_str(), gen_seconds, bind.seconds,
-                o.runtime_threads.back());
-    const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
-    for (const int threads : o.runtime_threads) {
-      set_thread_count(threads);
-      for (const bool resolve : {true}) {
-        const auto session_start = std::chrono::steady_clock::now();
-        RuntimeSession session(bundle, bind.bound, mesh.F, resolve);
-        const double session_seconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - session_start).count();
-        const Transforms first = forward_kinematics(body.skeleton, walk, 0);
-        const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
-        for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
-        GlbStreamWriter writer(scratch + "/bench.glb", mesh.F, N, 30.0f);
-        std::vector<double> totals, model, pen, out, lbs, app, ref;
-        MatrixX3f V;
-        PenetrationReport report;
-        Penetration before, after;
-        int64_t carried = 0;
-        for (int t = 0; t < o.repeats; ++t) {
-          const Transforms T = forward_kinematics(body.skeleton, walk, t);
-          FrameTimes times = session.step(T, V, &report);
-          const auto w = std::chrono::steady_clock::now();
-          writer.append(V);
-          times.output = std::chrono::duration<double>(std::chrono::steady_clock::now() - w).count();
-          totals.push_back(times.total()), model.push_back(times.model), pen.push_back(times.penetration),
-              out.push_back(times.output);
-          before.inside += report.before.inside, before.total += report.before.total;
-          after.inside += report.after.inside, after.total += report.after.total;
-          carried += report.carried;
-          // Stage split, as the pipeline stepper timed it within this very frame.
-          lbs.push_back(times.stages.lbs), app.push_back(times.stages.apparel), ref.push_back(times.stages.refiner);
-        }
-        const auto [median, p95] = median_p95(totals);
-        std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
-                    "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
-                    "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
-                    "RSS %.0f MB, peak %.0f MB; session set-up %.2f s\n",
-                    N, threads, threads > 1 ? "s" : "", 1e3 * median, 1e3 * p95, 1.0 / median, 1e3 * median_p95(model).first,
-                    1e3 * median_p95(lbs).first, 1e3 * median_p95(app).first, 1e3 * median_p95(ref).first,
-                    1e3 * median_p95(pen).first, 1e3 * median_p95(out).first, 100.0 * before.share(),
-                    100.0 * after.share(), before.total > 0 ? 100.0 * double(carried) / before.total : 0.0, resident_mb(),
-                    peak_resident_mb(), session_seconds);
-        std::fflush(stdout);
-      }
-    }
+    std::fflush(stdout);
   }
-  std::error_code ignored;
-  std::filesystem::remove_all(scratch, ignored);
 }
 
 

@@ -13,6 +13,7 @@
 #include "app/repository.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/formats/viewer_folder.h"
+#include "infer/runtime_benchmark_torch.h"
 #include "train/evaluate.h"
 #include "train/evaluation_viewer.h"
 #include "train/report.h"
@@ -31,6 +32,8 @@ struct EvalCommand {
   int viewer_frames = 120;
   EvaluateOptions options;
   bool no_plots = false, quiet = false;
+  bool runtime = false;  // also measure the runtime (measure_runtime) for the report
+  int runtime_repeats = 30;
   std::string command_line;
 };
 
@@ -48,6 +51,28 @@ void print_summary(const EvaluationResult& result, const ReportFiles& files) {
   std::cout << std::endl;
 }
 
+// The runtime figures of the report (--runtime): the stand-in for a real model of issue 17 (about 14.5k
+// vertices of open, overlapping parts, the segmenter's mask; targets 16 ms per frame on 2 threads and a
+// 5 s bind) and the 20k-vertex dressed character of issue 18 (the dressed mask; 12 ms on 2 threads).
+std::vector<RuntimeFigures> eval_runtime(const ModelBundle& bundle, int repeats, bool quiet) {
+  std::vector<RuntimeFigures> figures;
+  RuntimeBenchmarkOptions real;
+  real.vertices = 14500;
+  real.open_parts = true;
+  real.segmenter_mask = true;
+  real.repeats = repeats;
+  if (!quiet) std::cerr << "eval: runtime on a real-mesh stand-in (" << real.vertices << " vertices, open parts)" << std::endl;
+  figures.push_back(measure_runtime(bundle, real, "real-mesh stand-in, segmenter mask"));
+  figures.back().target_ms = 16, figures.back().target_bind_seconds = 5;
+  RuntimeBenchmarkOptions dressed;
+  dressed.vertices = 20000;
+  dressed.repeats = repeats;
+  if (!quiet) std::cerr << "eval: runtime on a dressed character (" << dressed.vertices << " vertices)" << std::endl;
+  figures.push_back(measure_runtime(bundle, dressed, "20k-vertex dressed character, dressed mask"));
+  figures.back().target_ms = 12;
+  return figures;
+}
+
 void run(const EvalCommand& command) {
   // The output and viewer folders are checked before the evaluation, which can take hours.
   check_report_folder(command.out);
@@ -63,6 +88,8 @@ void run(const EvalCommand& command) {
     viewer_page_files(viewer_dir);
     check_viewer_folder(command.viewer);
   }
+  AMT_CHECK(!command.runtime || command.predictions.empty(),
+            "--runtime: expected a model to time, found --predictions (a file of predictions has no runtime)");
   EvaluateOptions options = command.options;
   options.paper = command.protocol == "paper" || command.protocol == "both";
   options.rollout = command.protocol == "rollout" || command.protocol == "both";
@@ -82,6 +109,14 @@ void run(const EvalCommand& command) {
     const ModelBundle bundle = load_model_bundle(model);
     report.model_dir = model;
     result = evaluate_model(bundle, shards, options);
+    if (command.runtime) {
+      result.runtime = eval_runtime(bundle, command.runtime_repeats, command.quiet);
+      for (const RuntimeFigures& r : result.runtime)
+        for (const RuntimeThreadFigures& t : r.per_thread)
+          std::cout << "runtime, " << r.label << " (" << r.vertices << " vertices, " << r.apparel_vertices
+                    << " apparel): " << t.threads << " thread" << (t.threads > 1 ? "s" : "") << " " << t.median_ms
+                    << " ms per frame (apparel network " << t.apparel_ms << " ms), bind " << r.bind_seconds << " s\n";
+    }
     print_summary(result, write_report(result, report));
     if (!command.viewer.empty()) {
       const EvaluationViewer viewer =
@@ -128,6 +163,13 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   eval->add_flag("--no-penetration", [command](int64_t) { command->options.penetration = false; },
                  "Skip the penetration measure (a winding-number tree per frame)");
+  eval->add_flag("--runtime", command->runtime,
+                 "Also measure the per-frame runtime (as amt bench --suite runtime) on a real-mesh stand-in (14.5k "
+                 "vertices of open parts, the segmenter's mask) and a 20k-vertex dressed character, on 1 and 2 threads, "
+                 "for the report's Runtime section and targets");
+  eval->add_option("--runtime-repeats", command->runtime_repeats, "Timed frames per runtime figure")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");
   add_threads_option(*eval);
@@ -138,6 +180,7 @@ void add_eval_command(CLI::App& app) {
     else line += " --predictions " + command->predictions;
     line += " --out " + command->out + " --protocol " + command->protocol;
     if (command->options.max_clips > 0) line += " --max-clips " + std::to_string(command->options.max_clips);
+    if (command->runtime) line += " --runtime";
     command->command_line = line;
     run(*command);
   });

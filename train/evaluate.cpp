@@ -1003,6 +1003,26 @@ std::string evaluation_json(const EvaluationResult& result) {
   }
   j["paper_horizons"] = horizons;
   if (result.inertia_clips > 0) j["inertia"] = {{"value", result.inertia}, {"clips", result.inertia_clips}};
+  if (!result.runtime.empty()) {
+    Json runtime = Json::array();
+    for (const RuntimeFigures& r : result.runtime) {
+      Json threads = Json::array();
+      for (const RuntimeThreadFigures& t : r.per_thread)
+        threads.push_back({{"threads", t.threads}, {"median_ms", number(t.median_ms)}, {"p95_ms", number(t.p95_ms)},
+                           {"model_ms", number(t.model_ms)}, {"lbs_ms", number(t.lbs_ms)}, {"apparel_ms", number(t.apparel_ms)},
+                           {"refiner_ms", number(t.refiner_ms)}, {"penetration_ms", number(t.penetration_ms)},
+                           {"output_ms", number(t.output_ms)}, {"inside_before", number(t.inside_before)},
+                           {"inside_after", number(t.inside_after)}, {"carried_share", number(t.carried_share)},
+                           {"resident_mb", number(t.resident_mb)}});
+      runtime.push_back({{"label", r.label}, {"character", r.character}, {"mask", r.mask}, {"vertices", r.vertices},
+                         {"faces", r.faces}, {"repeats", r.repeats}, {"apparel_vertices", r.apparel_vertices},
+                         {"true_apparel_vertices", r.true_apparel_vertices}, {"bind_seconds", number(r.bind_seconds)},
+                         {"peak_resident_mb", number(r.peak_resident_mb)}, {"per_thread", threads},
+                         {"target_ms", r.target_ms}, {"target_threads", r.target_threads},
+                         {"target_bind_seconds", r.target_bind_seconds}});
+    }
+    j["runtime"] = runtime;
+  }
   j["notes"] = result.notes;
   return j.dump(2) + "\n";
 }

@@ -109,6 +109,37 @@ struct ClipScore {
   double pmd_a = std::nan("");
 };
 
+/// The per-frame cost of the whole runtime step (`amt animate`'s RuntimeSession: pipeline, penetration
+/// resolution, GLB output) at one thread count; milliseconds are medians over the timed frames.
+struct RuntimeThreadFigures {
+  int threads = 1;
+  double median_ms = std::nan(""), p95_ms = std::nan("");
+  /// Stages of the median split: the model (LBS, apparel network and refiner, and the copy out),
+  /// penetration, output.
+  double model_ms = std::nan(""), lbs_ms = std::nan(""), apparel_ms = std::nan(""), refiner_ms = std::nan("");
+  double penetration_ms = std::nan(""), output_ms = std::nan("");
+  /// Share of apparel vertices inside the body before and after resolution, and the share of inside
+  /// tests carried over from the previous frame.
+  double inside_before = std::nan(""), inside_after = std::nan(""), carried_share = std::nan("");
+  /// Resident memory after the timed frames (MB).
+  double resident_mb = std::nan("");
+};
+
+/// A runtime measurement on one generated character (infer/runtime_benchmark.h, `amt bench --suite runtime`,
+/// `amt eval --runtime`), with the targets it is held to (0: none).
+struct RuntimeFigures {
+  /// What was measured, for the reader: the character, the mask.
+  std::string label, character, mask;
+  int vertices = 0, faces = 0, repeats = 0;
+  /// Apparel vertices of the mask the model ran with, and of the character as built.
+  int apparel_vertices = 0, true_apparel_vertices = 0;
+  double bind_seconds = std::nan(""), peak_resident_mb = std::nan("");
+  std::vector<RuntimeThreadFigures> per_thread;
+  /// Per-frame median at `target_threads` threads at most target_ms; bind at most target_bind_seconds.
+  double target_ms = 0, target_bind_seconds = 0;
+  int target_threads = 2;
+};
+
 /// Everything an evaluation measured.
 struct EvaluationResult {
   /// Dataset shards, model folder (or the predictions file) evaluated.
@@ -136,6 +167,8 @@ struct EvaluationResult {
   std::map<std::string, int> clips;
   /// Every clip's PMD_a per method and protocol, in evaluation order (the viewer's picks).
   std::vector<ClipScore> clip_scores;
+  /// Runtime measurements (`amt eval --runtime`; empty: not measured).
+  std::vector<RuntimeFigures> runtime;
   /// Things the report must say (missing ablation checkpoints, clips too short for a window, ...).
   std::vector<std::string> notes;
   /// The options used.

@@ -426,10 +426,48 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
     md << "\n";
   }
 
+  // Runtime on generated characters (amt eval --runtime).
+  if (!result.runtime.empty()) {
+    md << "## Runtime\n\nThe whole per-frame step of `amt animate` (the pipeline, penetration resolution, GLB "
+          "output) on generated characters, medians over the timed frames after a lead-in; milliseconds.\n\n";
+    for (const RuntimeFigures& r : result.runtime) {
+      md << "**" << r.label << "**: " << r.character << ", " << r.vertices << " vertices, " << r.faces
+         << " faces; apparel mask from " << r.mask << ": " << r.apparel_vertices << " vertices ("
+         << percent(r.vertices > 0 ? double(r.apparel_vertices) / r.vertices : std::nan("")) << "; as built "
+         << r.true_apparel_vertices << ", "
+         << percent(r.vertices > 0 ? double(r.true_apparel_vertices) / r.vertices : std::nan("")) << "); bind "
+         << fixed(r.bind_seconds, 2) << " s; " << r.repeats << " timed frames; peak resident memory "
+         << fixed(r.peak_resident_mb, 0) << " MB.\n\n"
+         << "| Threads | Per frame | p95 | LBS | Apparel network | Refiner | Penetration | Output | Inside before -> "
+            "after | Inside tests carried over |\n|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|\n";
+      for (const RuntimeThreadFigures& t : r.per_thread)
+        md << "| " << t.threads << " | " << fixed(t.median_ms, 2) << " | " << fixed(t.p95_ms, 2) << " | "
+           << fixed(t.lbs_ms, 2) << " | " << fixed(t.apparel_ms, 2) << " | " << fixed(t.refiner_ms, 2) << " | "
+           << fixed(t.penetration_ms, 2) << " | " << fixed(t.output_ms, 2) << " | " << percent(t.inside_before)
+           << " -> " << percent(t.inside_after) << " | " << percent(t.carried_share) << " |\n";
+      md << "\n";
+    }
+  }
+
   // Targets of the apparel dynamics (paper protocol, rollout protocol, drift) and of the paper.
   if (result.predictions.empty()) {
     md << "## Targets\n\n";
     bool any = false;
+    for (const RuntimeFigures& r : result.runtime) {
+      for (const RuntimeThreadFigures& t : r.per_thread) {
+        if (r.target_ms <= 0 || t.threads != r.target_threads || !std::isfinite(t.median_ms)) continue;
+        any = true;
+        md << "- runtime, " << r.label << ": per frame on " << t.threads << " thread" << (t.threads > 1 ? "s" : "")
+           << " = " << fixed(t.median_ms, 2) << " ms (target <= " << fixed(r.target_ms, 0) << " ms): "
+           << (t.median_ms <= r.target_ms ? "met" : "NOT met") << "\n";
+      }
+      if (r.target_bind_seconds > 0 && std::isfinite(r.bind_seconds)) {
+        any = true;
+        md << "- runtime, " << r.label << ": bind = " << fixed(r.bind_seconds, 2) << " s (target <= "
+           << fixed(r.target_bind_seconds, 0) << " s): " << (r.bind_seconds <= r.target_bind_seconds ? "met" : "NOT met")
+           << "\n";
+      }
+    }
     const auto pmd_a = [&](const char* method, const char* protocol, const std::string& subset) {
       const MethodScores* r = result.find(method, protocol, subset);
       return r ? r->scores.pmd_a : std::nan("");

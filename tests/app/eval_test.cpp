@@ -86,6 +86,8 @@ TEST(EvalCommand, BadInputsAreOneLineErrorsAndWriteNoReport) {
        {"text.h5: expected an HDF5 file", "found a file that is not HDF5"}},
       {eval({"--data", "ex.h5", "--model", model}), {"ex.h5: no held-out clips"}},
       {eval({"--data", "ex.h5", "--predictions", "missing.h5"}), {"missing.h5: no such predictions file"}},
+      {eval({"--data", "ex.h5", "--predictions", "ex.h5", "--runtime"}),
+       {"--runtime: expected a model to time, found --predictions"}},
       {eval({"--data", "ex.h5", "--model", model, "--methods", "magic"}),
        {"eval: method: expected one of", "found 'magic'"}}};
   test::expect_errors_writing_nothing(dir, cases);  // no output, no bind cache or report, no temporary

@@ -461,5 +461,58 @@ TEST(Report, OpenPartsSegmentationIsScoredPerCharacterAndSubset) {
   EXPECT_NE(md.str().find(row), std::string::npos) << row << md.str();
 }
 
+// The report's Runtime section: hand-set figures appear in the table, each checked against its own
+// target on its target thread count (met and missed), the bind against its bound, and metrics.json
+// carries them.
+TEST(Report, RuntimeFiguresAreTabledAndCheckedAgainstTheirTargets) {
+  const std::string dir = test::test_directory("report_runtime");
+  EvaluationResult result;
+  RuntimeFigures real;
+  real.label = "stand-in";
+  real.character = "a body of open parts";
+  real.mask = "the segmenter";
+  real.vertices = 1000, real.faces = 1900, real.repeats = 3, real.apparel_vertices = 150, real.true_apparel_vertices = 160;
+  real.bind_seconds = 6.5, real.peak_resident_mb = 300;
+  real.target_ms = 16, real.target_bind_seconds = 5, real.target_threads = 2;
+  RuntimeThreadFigures one, two;
+  one.threads = 1, one.median_ms = 20.25, one.p95_ms = 30, one.model_ms = 10, one.lbs_ms = 1, one.apparel_ms = 7;
+  one.refiner_ms = 2, one.penetration_ms = 9, one.output_ms = 0.25, one.inside_before = 0.01, one.inside_after = 0;
+  one.carried_share = 0.96;
+  two = one;
+  two.threads = 2, two.median_ms = 7.5;
+  real.per_thread = {one, two};
+  RuntimeFigures dressed = real;
+  dressed.label = "dressed";
+  dressed.target_ms = 12, dressed.target_bind_seconds = 0;
+  dressed.per_thread[1].median_ms = 13;
+  result.runtime = {real, dressed};
+
+  ReportOptions report;
+  report.out_dir = dir + "/out";
+  report.plots = false;
+  const ReportFiles files = write_report(result, report);
+  std::stringstream md;
+  md << std::ifstream(files.markdown).rdbuf();
+  const std::string text = md.str();
+  EXPECT_NE(text.find("## Runtime"), std::string::npos) << text;
+  EXPECT_NE(text.find("apparel mask from the segmenter: 150 vertices (15.0 %; as built 160, 16.0 %); bind 6.50 s"),
+            std::string::npos) << text;
+  EXPECT_NE(text.find("| 1 | 20.25 | 30.00 | 1.00 | 7.00 | 2.00 | 9.00 | 0.25 | 1.0 % -> 0.0 % | 96.0 % |"),
+            std::string::npos) << text;
+  EXPECT_NE(text.find("- runtime, stand-in: per frame on 2 threads = 7.50 ms (target <= 16 ms): met\n"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("- runtime, stand-in: bind = 6.50 s (target <= 5 s): NOT met\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("- runtime, dressed: per frame on 2 threads = 13.00 ms (target <= 12 ms): NOT met\n"),
+            std::string::npos) << text;
+  EXPECT_EQ(text.find("- runtime, dressed: bind"), std::string::npos) << text;  // no bind target
+  EXPECT_EQ(text.find("per frame on 1 thread ="), std::string::npos) << text;  // the target is on 2 threads
+  std::stringstream json;
+  json << std::ifstream(files.json).rdbuf();
+  const std::string j = json.str();
+  EXPECT_NE(j.find("\"runtime\": ["), std::string::npos) << j;
+  EXPECT_NE(j.find("\"median_ms\": 7.5"), std::string::npos) << j;
+  EXPECT_NE(j.find("\"true_apparel_vertices\": 160"), std::string::npos) << j;
+}
+
 }  // namespace
 }  // namespace amt

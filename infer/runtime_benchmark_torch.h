@@ -1,0 +1,44 @@
+#pragma once
+// The runtime measured on a generated character (`amt bench --suite runtime`, `amt eval --runtime`):
+// a dressed procedural character of about the requested size, optionally remade as real models are
+// built (a body of many open, overlapping parts: data_tools/builder/open_parts.h), bound through the
+// bind cache with the dressed character's mask or the segmenter's, then RuntimeSession frame by frame
+// on a walk after a lead-in, timed per stage. Timing is never asserted: the figures are reported.
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "train/evaluate.h"
+#include "train/pipeline.h"
+
+namespace amt {
+
+/// What to measure.
+struct RuntimeBenchmarkOptions {
+  /// Requested vertex count (the generated character comes close to it).
+  int vertices = 20000;
+  /// Remake the body of open, overlapping parts (real models' build), ~20 % apparel; else a closed
+  /// dressed body with ~30 % apparel.
+  bool open_parts = false;
+  /// Bind with the segmenter's mask (as `amt animate` does by default) instead of the dressed character's.
+  bool segmenter_mask = false;
+  /// Thread counts measured, in order (the bind runs on the last).
+  std::vector<int> threads = {1, 2};
+  /// Timed frames per thread count (after a 10-frame lead-in).
+  int repeats = 30;
+  /// Folder for the scratch GLB (removed afterwards).
+  std::string scratch_dir;
+};
+
+/// Measures `bundle` as `options` say. `label` names the measurement in the report; no targets are set.
+RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmarkOptions& options,
+                               const std::string& label = "");
+
+/// Median and 95th percentile of a sample (sorted in place; empty: NaN).
+std::pair<double, double> median_p95(std::vector<double>& v);
+
+/// Peak and current resident memory of the process (MB).
+double peak_resident_mb();
+double resident_mb();
+
+}  // namespace amt
