@@ -189,7 +189,7 @@ ModuleKind parse_module_kind(const std::string& name, const std::string& source)
 }
 
 void save_checkpoint(const std::string& path, const CheckpointInfo& info, const torch::nn::Module& model,
-                     const torch::optim::Optimizer* optimizer) {
+                     const torch::optim::Optimizer* optimizer, const std::vector<at::Tensor>* training_parameters) {
   torch::serialize::OutputArchive archive;
   archive.write("format", c10::IValue(std::string(kCheckpointFormat)));
   archive.write("version", c10::IValue(kCheckpointVersion));
@@ -210,6 +210,18 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
     torch::serialize::OutputArchive optimizer_archive(archive.compilation_unit());
     optimizer->save(optimizer_archive);
     archive.write("optimizer", optimizer_archive);
+  }
+  if (training_parameters) {
+    torch::serialize::OutputArchive training_archive(archive.compilation_unit());
+    uint32_t crc = 0;
+    for (size_t i = 0; i < training_parameters->size(); ++i) {
+      const at::Tensor t = (*training_parameters)[i].detach();
+      training_archive.write("t" + std::to_string(i), t);
+      crc = crc32_update(crc, t);
+    }
+    training_archive.write("count", c10::IValue(int64_t(training_parameters->size())));
+    archive.write("training_parameters", training_archive);
+    archive.write("training_parameters_crc32", c10::IValue(int64_t(crc)));
   }
 
   save_archive_atomically(archive, path, "checkpoint");
@@ -259,7 +271,7 @@ CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<Modul
 }
 
 CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind, torch::nn::Module& model,
-                               torch::optim::Optimizer* optimizer) {
+                               torch::optim::Optimizer* optimizer, std::vector<at::Tensor>* training_parameters) {
   torch::serialize::InputArchive archive;
   open_archive(archive, path);
   CheckpointInfo info = read_info(archive, path, expected_kind);
@@ -285,6 +297,33 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
       optimizer->load(optimizer_archive);
     } catch (const std::exception& e) {
       fail(path, ": optimizer: does not match the model's parameters (", first_line(e), ")");
+    }
+  }
+  if (training_parameters) {
+    training_parameters->clear();
+    torch::serialize::InputArchive training_archive;
+    if (archive.try_read("training_parameters", training_archive)) {
+      const std::vector<at::Tensor> parameters = model.parameters();
+      c10::IValue count;
+      AMT_CHECK(training_archive.try_read("count", count) && count.isInt(), path,
+                ": training_parameters/count: expected an integer, found none");
+      AMT_CHECK(count.toInt() == int64_t(parameters.size()), path, ": training_parameters: expected ",
+                parameters.size(), " tensors (the model's parameters), found ", count.toInt());
+      uint32_t crc = 0;
+      for (size_t i = 0; i < parameters.size(); ++i) {
+        at::Tensor t;
+        AMT_CHECK(training_archive.try_read("t" + std::to_string(i), t), path, ": training_parameters: t", i,
+                  ": missing");
+        AMT_CHECK(t.sizes() == parameters[i].sizes(), path, ": training_parameters: t", i, ": expected shape ",
+                  parameters[i].sizes(), ", found ", t.sizes());
+        crc = crc32_update(crc, t);
+        training_parameters->push_back(t);
+      }
+      c10::IValue stored;
+      AMT_CHECK(archive.try_read("training_parameters_crc32", stored) && stored.isInt(), path,
+                ": training_parameters_crc32: expected an integer, found none");
+      AMT_CHECK(int64_t(crc) == stored.toInt(), path, ": training_parameters_crc32: expected ", stored.toInt(),
+                ", found ", crc, " over what was read: the file is damaged");
     }
   }
   return info;

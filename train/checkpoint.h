@@ -10,7 +10,8 @@
 //   the module was trained on), data_fingerprint (data_fingerprint() of the training shards),
 //   model/ (parameter_names and buffer_names, the qualified names of the module's tensors, and the
 //   tensors themselves under p0, p1, ... and b0, b1, ...), optimizer/ (Optimizer::save; absent in a
-//   model-only file).
+//   model-only file), training_parameters/ and training_parameters_crc32 (a run with a moving average
+//   of its parameters: the parameters the optimizer works on; model/ holds the average).
 // No random-number state is stored: a training step draws no random numbers, and the samples of a
 // step are a function of (seed, step) alone (train/samples.h), so step and seed resume a run exactly.
 #include <torch/nn/module.h>
@@ -63,8 +64,13 @@ struct CheckpointInfo {
 
 /// Writes `info`, the parameters and buffers of `model` and, when not null, the state of `optimizer`
 /// to `path` (through "<path>.tmp", then renamed). Throws amt::Error when the file cannot be written.
+/// `training_parameters`, when not null, are the parameters the optimizer works on where they differ
+/// from the model's (a run with a moving average of its parameters stores the average as the model and
+/// these for --resume): key training_parameters/ (t0, t1, ... in model->parameters() order) with its own
+/// CRC-32 training_parameters_crc32.
 void save_checkpoint(const std::string& path, const CheckpointInfo& info, const torch::nn::Module& model,
-                     const torch::optim::Optimizer* optimizer);
+                     const torch::optim::Optimizer* optimizer,
+                     const std::vector<at::Tensor>* training_parameters = nullptr);
 
 /// Saves `archive` to `path` through "<path>.tmp", renamed when complete (the parent folder is created).
 /// Throws amt::Error "<path>.tmp: cannot write the <what> (reason)" and removes the temporary on failure.
@@ -79,9 +85,12 @@ CheckpointInfo read_checkpoint_info(const std::string& path, std::optional<Modul
 /// Loads a checkpoint of kind `expected_kind` into `model`, which must have been built from the
 /// checkpoint's options (read_checkpoint_info first): every parameter and buffer must exist with the
 /// stored shape. When `optimizer` is not null, its state is restored too (the file must hold one; the
-/// optimizer must be over model->parameters() in the same order). Returns the info.
+/// optimizer must be over model->parameters() in the same order). `training_parameters`, when not null,
+/// receives the stored training parameters (save_checkpoint; empty when the file has none), checked
+/// against the model's parameters' count and shapes and against their CRC-32. Returns the info.
 CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind, torch::nn::Module& model,
-                               torch::optim::Optimizer* optimizer);
+                               torch::optim::Optimizer* optimizer,
+                               std::vector<at::Tensor>* training_parameters = nullptr);
 
 /// A trained network rebuilt for inference from the checkpoint at `path`: reads the info (the kind must be
 /// `kind`), builds a Net from the stored options (options_from_json, train/module_options.h), loads its

@@ -53,6 +53,7 @@ std::string config_to_json(const TrainOptions& o, const char* mode) {
   j["skinning_frames"] = o.skinning_frames;
   j["segmenter_pos_weight"] = o.segmenter_pos_weight;
   if (o.segmenter_held_weight != 1.0) j["segmenter_held_weight"] = o.segmenter_held_weight;
+  if (o.ema != 0.0) j["ema"] = o.ema;  // only when on: earlier configs stay as they were
   j["unroll"] = o.unroll;
   j["history_noise"] = o.history_noise;
   j["noise_gamma"] = o.noise_gamma;
@@ -106,6 +107,8 @@ void config_from_json(const std::string& text, const std::string& path, const ch
   get(j, "segmenter_pos_weight", o.segmenter_pos_weight, "");
   // Written only when not 1, so that the configs of earlier checkpoints and of unweighted runs stay as they were.
   if (j.contains("segmenter_held_weight")) get(j, "segmenter_held_weight", o.segmenter_held_weight, "");
+  o.ema = 0.0;  // a run without the key had no average
+  if (j.contains("ema")) get(j, "ema", o.ema, "");
   if (const auto unroll = j.find("unroll"); unroll != j.end()) {
     AMT_CHECK(unroll->is_string(), path, ": config.unroll: expected a string, found ", unroll->dump());
     o.unroll = unroll->get<std::string>();
@@ -148,7 +151,22 @@ struct Part {
   std::unique_ptr<torch::optim::AdamW> optimizer;
   std::string resume;
   std::string checkpoint;
+  /// The moving average of the parameters (TrainOptions::ema; empty when off), in parameters() order.
+  std::vector<at::Tensor> average;
 };
+
+// The parameters of `part` and its moving average swapped (no gradient): before validating and saving,
+// so that both see the average, and back afterwards.
+void swap_average(Part& part) {
+  if (part.average.empty()) return;
+  torch::NoGradGuard no_grad;
+  const std::vector<at::Tensor> parameters = part.module->parameters();
+  for (size_t i = 0; i < parameters.size(); ++i) {
+    const at::Tensor own = parameters[i].detach().clone();
+    at::Tensor(parameters[i]).copy_(part.average[i]);
+    part.average[i].copy_(own);
+  }
+}
 
 // What a run trains: its networks, the stem of its log, the loss of one sample at a step as
 // {total, unweighted terms...} in the order of `terms` (validating: the fixed validation form, no
@@ -606,10 +624,10 @@ std::string duration_text(double seconds) {
 // training mode afterwards).
 double validation_loss(Task& task, const std::vector<TrainingSample>& samples) {
   torch::NoGradGuard no_grad;
-  for (Part& part : task.parts) part.module->eval();
+  for (Part& part : task.parts) part.module->eval(), swap_average(part);
   double sum = 0.0;
   for (const TrainingSample& sample : samples) sum += task.loss(sample, 0, /*validating=*/true)[0].item<double>();
-  for (Part& part : task.parts) part.module->train();
+  for (Part& part : task.parts) part.module->train(), swap_average(part);
   return sum / static_cast<double>(samples.size());
 }
 
@@ -802,8 +820,23 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     Part& part = task.parts[i];
     part.optimizer = std::make_unique<torch::optim::AdamW>(
         part.module->parameters(), torch::optim::AdamWOptions(o.learning_rate).weight_decay(o.weight_decay));
-    if (!resume_paths.empty()) load_checkpoint(resume_paths[i], part.kind, *part.module, part.optimizer.get());
+    std::vector<at::Tensor> training_parameters;
+    if (!resume_paths.empty())
+      load_checkpoint(resume_paths[i], part.kind, *part.module, part.optimizer.get(), &training_parameters);
     if (!init_paths.empty()) load_checkpoint(init_paths[i], part.kind, *part.module, nullptr);
+    if (o.ema > 0) {
+      // The average starts at the network; a resumed run's network is the average, its own parameters
+      // the stored training parameters.
+      torch::NoGradGuard no_grad;
+      for (const at::Tensor& p : part.module->parameters()) part.average.push_back(p.detach().clone());
+      if (!resume_paths.empty()) {
+        AMT_CHECK(!training_parameters.empty(), resume_paths[i], ": training_parameters: expected the parameters ",
+                  "of a run with --ema (config.ema ", o.ema, "), found none");
+        swap_average(part);  // the average back in part.average ...
+        const std::vector<at::Tensor> parameters = part.module->parameters();
+        for (size_t k = 0; k < parameters.size(); ++k) at::Tensor(parameters[k]).copy_(training_parameters[k]);
+      }
+    }
     part.module->train();
     part.checkpoint = (std::filesystem::path(o.out_dir) / (part.stem + ".ckpt")).string();
     if (writes) result.checkpoints.push_back(part.checkpoint);
@@ -868,6 +901,14 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     AMT_CHECK(std::isfinite(values[0]), name, ": step ", step + 1, ": the loss is not finite (", values[0],
               "); lower --lr or check the data");
     for (Part& part : task.parts) part.optimizer->step();
+    if (o.ema > 0) {
+      const double decay = std::min(o.ema, (1.0 + double(step)) / (10.0 + double(step)));
+      torch::NoGradGuard no_grad;
+      for (Part& part : task.parts) {
+        const std::vector<at::Tensor> parameters = part.module->parameters();
+        for (size_t i = 0; i < parameters.size(); ++i) part.average[i].mul_(decay).add_(parameters[i], 1.0 - decay);
+      }
+    }
     const auto step_end = Clock::now();
     const double seconds = std::chrono::duration<double>(step_end - step_start).count();
     step_seconds += seconds;
@@ -910,7 +951,16 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       for (Part& part : task.parts) {
         info.kind = part.kind;
         info.options_json = part.options_json;
-        save_checkpoint(part.checkpoint, info, *part.module, part.optimizer.get());
+        if (part.average.empty()) {
+          save_checkpoint(part.checkpoint, info, *part.module, part.optimizer.get());
+          continue;
+        }
+        // The average as the network, the optimizer's own parameters beside it.
+        std::vector<at::Tensor> own;
+        for (const at::Tensor& p : part.module->parameters()) own.push_back(p.detach().clone());
+        swap_average(part);
+        save_checkpoint(part.checkpoint, info, *part.module, part.optimizer.get(), &own);
+        swap_average(part);
       }
     }
   }

@@ -99,6 +99,12 @@ struct TrainOptions {
   /// (run) Segmenter: loss weight of the held rows (held_rows_weights: body vertices of parts that hold apparel,
   /// where a piece hangs from the body); 1 for none.
   double segmenter_held_weight = 1.0;
+  /// (run) Exponential moving average of the parameters (Polyak averaging), the decay per step (0: off):
+  /// after each optimizer step avg = d avg + (1 - d) p with d = min(ema, (1 + step) / (10 + step)), so the
+  /// average forgets its start early on. The checkpoint's network (what inference, --init and the
+  /// validation use) is the average; the optimizer's own parameters are stored beside it
+  /// (save_checkpoint's training_parameters) for --resume.
+  double ema = 0.0;
   /// Write the checkpoint every this many steps (0: only at the end).
   int64_t checkpoint_every = 1000;
   /// Validate every this many steps and at the last step (0: never): the mean loss, under

@@ -367,6 +367,72 @@ TEST(LocalApparel, InitStartsANewRunFromAnotherRunsNetwork) {
   EXPECT_NE(error.find("--resume"), std::string::npos) << error;
 }
 
+// --ema: the checkpoint's network is the moving average of the parameters the plain run takes step by
+// step (each p_k from a plain run of k steps: the sample order and a constant rate do not depend on the
+// run's length), computed here by hand; the optimizer's own parameters are stored beside it, equal to the
+// plain run's; a resumed run continues the average bit-exactly.
+TEST(Trainer, MovingAverageIsTheCheckpointsNetworkAndResumesBitExactly) {
+  test::use_one_thread();
+  TrainOptions source = tiny_options("ema_source");
+  source.steps = 2;
+  const std::string start = train_module(ModuleKind::kApparel, {split_dataset()}, source).checkpoint;
+  const auto network = [](const std::string& path) {
+    CheckpointInfo info;
+    return load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(path, ModuleKind::kApparel, info)
+        ->parameters();
+  };
+  const auto run = [&](const std::string& out, int64_t steps, double ema, const std::string& resume = "") {
+    TrainOptions o = tiny_options(out);
+    o.steps = steps;
+    o.learning_rate = 1e-3;
+    o.lr_schedule = "constant";
+    o.lr_decay_steps = 3;  // the curriculum's phases at the same steps in every run
+    o.ema = ema;
+    if (resume.empty()) o.init = start;
+    else o.resume = resume;
+    return train_module(ModuleKind::kApparel, {split_dataset()}, o);
+  };
+  std::vector<std::vector<at::Tensor>> plain = {network(start)};
+  for (int64_t k = 1; k <= 3; ++k) plain.push_back(network(run("ema_plain" + std::to_string(k), k, 0.0).checkpoint));
+  const double ema = 0.5;
+  std::vector<at::Tensor> average;
+  for (const at::Tensor& p : plain[0]) average.push_back(p.clone());
+  for (int64_t step = 0; step < 3; ++step) {
+    const double d = std::min(ema, (1.0 + double(step)) / (10.0 + double(step)));  // 0.1, 0.18, 0.25
+    for (size_t i = 0; i < average.size(); ++i) average[i].mul_(d).add_(plain[size_t(step) + 1][i], 1.0 - d);
+  }
+  const TrainResult averaged = run("ema_straight", 3, ema);
+  const std::vector<at::Tensor> stored = network(averaged.checkpoint);
+  ASSERT_EQ(stored.size(), average.size());
+  for (size_t i = 0; i < stored.size(); ++i) {
+    EXPECT_TRUE(at::allclose(stored[i], average[i], 1e-6, 1e-7)) << "parameter " << i;
+    EXPECT_FALSE(at::equal(stored[i], plain[3][i])) << "parameter " << i;  // the average, not the last step
+  }
+  // The optimizer's own parameters beside it: the plain run's, exactly (the average does not steer training).
+  ApparelDynamicsNet holder(ApparelDynamicsOptions{});
+  {
+    CheckpointInfo info = read_checkpoint_info(averaged.checkpoint, ModuleKind::kApparel);
+    ApparelDynamicsOptions options;
+    options_from_json(info.options_json, averaged.checkpoint, options);
+    holder = ApparelDynamicsNet(options);
+  }
+  std::vector<at::Tensor> own;
+  load_checkpoint(averaged.checkpoint, ModuleKind::kApparel, *holder, nullptr, &own);
+  ASSERT_EQ(own.size(), plain[3].size());
+  for (size_t i = 0; i < own.size(); ++i) EXPECT_TRUE(at::equal(own[i], plain[3][i])) << "parameter " << i;
+  // A plain checkpoint has none.
+  load_checkpoint(run("ema_plain_again", 1, 0.0).checkpoint, ModuleKind::kApparel, *holder, nullptr, &own);
+  EXPECT_TRUE(own.empty());
+  // 2 + 1 steps equal 3 straight, the average and the losses alike.
+  const TrainResult first = run("ema_split", 2, ema);
+  const TrainResult second = run("ema_split", 3, 0.0, first.checkpoint);  // ema comes from the checkpoint
+  EXPECT_EQ(second.first_step, 2);
+  ASSERT_EQ(second.losses.size(), 1u);
+  EXPECT_EQ(second.losses[0], averaged.losses[2]);
+  const std::vector<at::Tensor> resumed = network(second.checkpoint);
+  for (size_t i = 0; i < resumed.size(); ++i) EXPECT_TRUE(at::equal(resumed[i], stored[i])) << "parameter " << i;
+}
+
 TEST(LocalApparel, TrainerTargetsAreTheNextFramesOfAHandMadeClip) {
   // A hand-made clip: the body stands in its rest pose, the apparel drifts by an offset of its own in
   // every frame (so that each frame's target is told apart from its neighbours'). On a body that does
