@@ -77,6 +77,123 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
   }
 }
 
+// The inference path of features_from in one pass (no autograd): the same channels, computed per vertex
+// from the raw arrays instead of through some forty tensor operations on (B, 4, N_a, 3, 3) rotations,
+// which cost more than the network's products at run time (a profile of the runtime step). The blended
+// contact transforms stay one matrix product each. Values agree with features_from to float rounding
+// (tested). Inputs float32 and contiguous.
+at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g,
+                          bool contact, int64_t channels) {
+  const int64_t B = h.size(0), N = h.size(2), J = T.size(2);
+  at::Tensor H = at::empty({B, N, channels}, at::kFloat);
+  at::Tensor P_last, P_next;
+  if (contact) {
+    P_last = contact_points(g.contact_rest, g.contact_weights, T.select(1, 2)).contiguous();
+    P_next = contact_points(g.contact_rest, g.contact_weights, T.select(1, 3)).contiguous();
+  }
+  const float* hp = h.data_ptr<float>();
+  const float* Tp = T.data_ptr<float>();
+  const float* Sp = S.data_ptr<float>();
+  const float* rest = g.rest_features.data_ptr<float>();
+  const int64_t* fj = g.frame_joints.data_ptr<int64_t>();
+  const float* pl = contact ? P_last.data_ptr<float>() : nullptr;
+  const float* pn = contact ? P_next.data_ptr<float>() : nullptr;
+  float* out = H.data_ptr<float>();
+  // Per joint: the axial vectors of R_2^T R_3 and R_1^T R_2, and gravity in the frame at t, (B, J, 9).
+  std::vector<float> joint(static_cast<size_t>(B * J * 9));
+  const auto rot = [&](int64_t b, int64_t k, int64_t j) { return Tp + (((b * 4 + k) * J + j) * 12); };  // row-major 3x4
+  for (int64_t b = 0; b < B; ++b) {
+    for (int64_t j = 0; j < J; ++j) {
+      float* o = joint.data() + (b * J + j) * 9;
+      for (int pair = 0; pair < 2; ++pair) {
+        const float* A = rot(b, pair == 0 ? 2 : 1, j);  // R_a
+        const float* C = rot(b, pair == 0 ? 3 : 2, j);  // R_b
+        const auto m = [&](int r, int c) {  // (R_a^T R_b)_rc = sum_k A_kr C_kc
+          return A[0 * 4 + r] * C[0 * 4 + c] + A[1 * 4 + r] * C[1 * 4 + c] + A[2 * 4 + r] * C[2 * 4 + c];
+        };
+        o[pair * 3 + 0] = 0.5f * (m(2, 1) - m(1, 2));
+        o[pair * 3 + 1] = 0.5f * (m(0, 2) - m(2, 0));
+        o[pair * 3 + 2] = 0.5f * (m(1, 0) - m(0, 1));
+      }
+      const float* R3 = rot(b, 3, j);
+      for (int c = 0; c < 3; ++c) o[6 + c] = -R3[1 * 4 + c];
+    }
+  }
+  at::parallel_for(0, B * N, 256, [&](int64_t begin, int64_t end) {
+    for (int64_t bi = begin; bi < end; ++bi) {
+      const int64_t b = bi / N, i = bi % N, j = fj[i];
+      float* o = out + bi * channels;
+      const auto vec = [&](const float* base, int64_t frames, int64_t k) { return base + ((b * frames + k) * N + i) * 3; };
+      // R^T v for the rotation of joint j at frame k.
+      const auto to = [&](int64_t k, const float v[3], float* dst) {
+        const float* R = rot(b, k, j);
+        for (int c = 0; c < 3; ++c) dst[c] = R[0 * 4 + c] * v[0] + R[1 * 4 + c] * v[1] + R[2 * 4 + c] * v[2];
+      };
+      float d[3][3];
+      for (int64_t k = 0; k < 3; ++k) {
+        const float* a = vec(hp, 3, k);
+        const float* s = vec(Sp, 4, k);
+        const float v[3] = {a[0] - s[0], a[1] - s[1], a[2] - s[2]};
+        to(k, v, d[k]);
+      }
+      for (int c = 0; c < 3; ++c) o[c] = d[2][c], o[3 + c] = d[2][c] - d[1][c], o[6 + c] = d[1][c] - d[0][c];
+      for (int64_t k = 0; k < 3; ++k) {  // channels 9-17: S_{t-k} - S_{t-k-1} for k = 0, 1, 2
+        const float* s1 = vec(Sp, 4, 3 - k);
+        const float* s0 = vec(Sp, 4, 2 - k);
+        const float v[3] = {s1[0] - s0[0], s1[1] - s0[1], s1[2] - s0[2]};
+        to(2, v, o + 9 + 3 * k);
+      }
+      const float* a2 = vec(hp, 3, 2);
+      const float* a1 = vec(hp, 3, 1);
+      const float move[3] = {a2[0] - a1[0], a2[1] - a1[1], a2[2] - a1[2]};
+      to(2, move, o + 18);
+      const float* jv = joint.data() + (b * J + j) * 9;
+      for (int c = 0; c < 9; ++c) o[21 + c] = jv[c];
+      for (int c = 0; c < kApparelRestChannels; ++c) o[30 + c] = rest[i * kApparelRestChannels + c];
+      if (contact) {
+        const float* n = pn + (b * N + i) * 3;
+        const float* l = pl + (b * N + i) * 3;
+        const float reach[3] = {n[0] - a2[0], n[1] - a2[1], n[2] - a2[2]};
+        const float step[3] = {n[0] - l[0], n[1] - l[1], n[2] - l[2]};
+        to(2, reach, o + 37);
+        to(2, step, o + 40);
+      }
+    }
+  });
+  return H;
+}
+
+// Whether the fused loops can read the inputs as they are: float32, contiguous, on the CPU.
+bool fused_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g) {
+  const auto plain = [](const at::Tensor& t, at::ScalarType type) {
+    return !t.defined() || (t.scalar_type() == type && t.is_contiguous() && t.device().is_cpu());
+  };
+  return plain(h, at::kFloat) && plain(T, at::kFloat) && plain(S, at::kFloat) && plain(g.rest_features, at::kFloat) &&
+         plain(g.frame_joints, at::kLong) && plain(g.contact_rest, at::kFloat) && plain(g.contact_weights, at::kFloat);
+}
+
+// S_t + R_t d_t per vertex (the inference path of step's last line): S (B, 4, N_a, 3), d (B, N_a, 3).
+at::Tensor fused_output(const at::Tensor& T, const at::Tensor& S, const at::Tensor& d, const at::Tensor& frame_joints) {
+  const int64_t B = d.size(0), N = d.size(1), J = T.size(2);
+  at::Tensor A = at::empty({B, N, 3}, at::kFloat);
+  const float* Tp = T.data_ptr<float>();
+  const float* Sp = S.data_ptr<float>();
+  const float* dp = d.data_ptr<float>();
+  const int64_t* fj = frame_joints.data_ptr<int64_t>();
+  float* out = A.data_ptr<float>();
+  at::parallel_for(0, B * N, 1024, [&](int64_t begin, int64_t end) {
+    for (int64_t bi = begin; bi < end; ++bi) {
+      const int64_t b = bi / N, i = bi % N;
+      const float* R = Tp + ((b * 4 + 3) * J + fj[i]) * 12;
+      const float* s = Sp + ((b * 4 + 3) * N + i) * 3;
+      const float* v = dp + bi * 3;
+      // Summed in from_frame's order, so that a zero network reproduces the rule exactly.
+      for (int r = 0; r < 3; ++r) out[bi * 3 + r] = s[r] + ((R[r * 4 + 0] * v[0] + R[r * 4 + 1] * v[1]) + R[r * 4 + 2] * v[2]);
+    }
+  });
+  return A;
+}
+
 }  // namespace
 
 // === Per-character inputs
@@ -418,8 +535,15 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   const bool unbatched = history.dim() == 3;
   const at::Tensor h = batched(history, 3), T = batched(transforms, 4), S = batched(anchors, 3);
   check_inputs(h, T, S, g, options.num_joints, options.contact, options.reach_levels, "ApparelDynamicsNet");
-  const at::Tensor R = vertex_rotations(T, g.frame_joints);
-  const at::Tensor H = features_from(h, T, S, g, R);
+  // Without autograd (inference) the features and the output come from the fused per-vertex loops.
+  const bool fused = !at::GradMode::is_enabled() && fused_inputs(h, T, S, g);
+  at::Tensor R, H;
+  if (fused) {
+    H = fused_features(h, T, S, g, options.contact, channels());
+  } else {
+    R = vertex_rotations(T, g.frame_joints);
+    H = features_from(h, T, S, g, R);
+  }
   at::Tensor x = input_normalizer->normalize(H);
   // The mesh neighbours, and with reach levels the chain's ancestors 1, 2, 4, ... hops towards the body.
   const at::Tensor neighbors =
@@ -429,7 +553,8 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
   const at::Tensor d_last = H.narrow(2, 0, 3);
   const at::Tensor d_t = rule_detail(d_last, d_last - H.narrow(2, 3, 3)) + change;
-  const at::Tensor A_t = S.select(1, 3) + from_frame(R.select(1, 3), d_t);
+  const at::Tensor A_t = fused ? fused_output(T, S, d_t.contiguous(), g.frame_joints)
+                               : S.select(1, 3) + from_frame(R.select(1, 3), d_t);
   if (detail) *detail = unbatched ? d_t.squeeze(0) : d_t;
   return unbatched ? A_t.squeeze(0) : A_t;
 }

@@ -136,6 +136,41 @@ TEST(ApparelDynamics, FeaturesMatchAnIndependentPerVertexComputation) {
   }
 }
 
+// Inference (no autograd) computes the features and the output in fused per-vertex loops: the same
+// prediction and detail vectors as the tensor path, to float rounding, batched, with and without the
+// contact inputs, over enough vertices for several parallel chunks.
+TEST(ApparelDynamics, FusedInferencePathEqualsTheTensorPath) {
+  torch::manual_seed(11);
+  const int64_t N = 700, J = 5, B = 2;
+  for (const bool contact : {true, false}) {
+    const ApparelGraph g = chain_graph(N, J);
+    ApparelDynamicsNet net = lively_network(J, g);
+    if (!contact) {
+      ApparelDynamicsOptions o = net->options;
+      o.contact = false;
+      net = ApparelDynamicsNet(o);
+      torch::NoGradGuard no_grad;
+      for (auto& p : net->parameters()) p.copy_(0.3 * at::randn(p.sizes()));
+    }
+    const at::Tensor T = at::stack({random_transforms(4, J), random_transforms(4, J)});
+    const at::Tensor A = 0.1 * at::randn({B, 3, N, 3}), S = 0.1 * at::randn({B, 4, N, 3});
+    at::Tensor d_tensor, d_fused;
+    const at::Tensor tensor_path = net->step(A, T, S, g, &d_tensor).detach();
+    at::Tensor fused_path;
+    {
+      c10::InferenceMode inference;
+      fused_path = net->step(A, T, S, g, &d_fused);
+    }
+    ASSERT_EQ(fused_path.sizes(), tensor_path.sizes());
+    EXPECT_TRUE(at::allclose(fused_path, tensor_path, 1e-5, 1e-5))
+        << "contact " << contact << ": max difference " << (fused_path - tensor_path).abs().max().item<float>();
+    EXPECT_TRUE(at::allclose(d_fused, d_tensor.detach(), 1e-5, 1e-5)) << "contact " << contact;
+    // The network's correction is far from zero here, so every feature feeds the comparison.
+    const at::Tensor rule = detail_rule_step(A, T, S, g.frame_joints, net->options.inertia);
+    EXPECT_GT((tensor_path - rule).abs().max().item<float>(), 1e-2) << "contact " << contact;
+  }
+}
+
 TEST(ApparelDynamics, WithoutContactTheFeaturesAreTheFirstChannels) {
   torch::manual_seed(6);
   const int64_t N = 4, J = 2;
