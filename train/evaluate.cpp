@@ -1019,7 +1019,8 @@ std::string evaluation_json(const EvaluationResult& result) {
                          {"true_apparel_vertices", r.true_apparel_vertices}, {"bind_seconds", number(r.bind_seconds)},
                          {"peak_resident_mb", number(r.peak_resident_mb)}, {"per_thread", threads},
                          {"target_ms", r.target_ms}, {"target_threads", r.target_threads},
-                         {"target_bind_seconds", r.target_bind_seconds}});
+                         {"target_bind_seconds", r.target_bind_seconds},
+                         {"target_apparel_lbs_ratio", r.target_apparel_lbs_ratio}});
     }
     j["runtime"] = runtime;
   }

@@ -461,6 +461,14 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
            << " = " << fixed(t.median_ms, 2) << " ms (target <= " << fixed(r.target_ms, 0) << " ms): "
            << (t.median_ms <= r.target_ms ? "met" : "NOT met") << "\n";
       }
+      for (const RuntimeThreadFigures& t : r.per_thread) {
+        if (r.target_apparel_lbs_ratio <= 0 || t.threads != 1 || !(t.lbs_ms > 0)) continue;
+        any = true;
+        const double ratio = t.apparel_ms / t.lbs_ms;
+        md << "- runtime, " << r.label << ": apparel network / LBS on 1 thread = " << fixed(ratio, 2) << " (target <= "
+           << fixed(r.target_apparel_lbs_ratio, 2) << "): " << (ratio <= r.target_apparel_lbs_ratio ? "met" : "NOT met")
+           << "\n";
+      }
       if (r.target_bind_seconds > 0 && std::isfinite(r.bind_seconds)) {
         any = true;
         md << "- runtime, " << r.label << ": bind = " << fixed(r.bind_seconds, 2) << " s (target <= "

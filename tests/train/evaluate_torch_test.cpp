@@ -483,7 +483,7 @@ TEST(Report, RuntimeFiguresAreTabledAndCheckedAgainstTheirTargets) {
   real.per_thread = {one, two};
   RuntimeFigures dressed = real;
   dressed.label = "dressed";
-  dressed.target_ms = 12, dressed.target_bind_seconds = 0;
+  dressed.target_ms = 12, dressed.target_bind_seconds = 0, dressed.target_apparel_lbs_ratio = 5.1;
   dressed.per_thread[1].median_ms = 13;
   result.runtime = {real, dressed};
 
@@ -505,6 +505,10 @@ TEST(Report, RuntimeFiguresAreTabledAndCheckedAgainstTheirTargets) {
   EXPECT_NE(text.find("- runtime, dressed: per frame on 2 threads = 13.00 ms (target <= 12 ms): NOT met\n"),
             std::string::npos) << text;
   EXPECT_EQ(text.find("- runtime, dressed: bind"), std::string::npos) << text;  // no bind target
+  // 7 ms of apparel network against 1 ms of LBS on one thread.
+  EXPECT_NE(text.find("- runtime, dressed: apparel network / LBS on 1 thread = 7.00 (target <= 5.10): NOT met\n"),
+            std::string::npos) << text;
+  EXPECT_EQ(text.find("- runtime, stand-in: apparel network"), std::string::npos) << text;  // no ratio target
   EXPECT_EQ(text.find("per frame on 1 thread ="), std::string::npos) << text;  // the target is on 2 threads
   std::stringstream json;
   json << std::ifstream(files.json).rdbuf();
