@@ -82,22 +82,33 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
 // which cost more than the network's products at run time (a profile of the runtime step). The blended
 // contact transforms stay one matrix product each. Values agree with features_from to float rounding
 // (tested). Inputs float32 and contiguous.
+// Returns the channels normalised by (mean, scale) (the input normaliser's), and the raw first six
+// (d_{t-1}, d_{t-1} - d_{t-2}) in `raw` (B, N_a, 6).
 at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g,
-                          bool contact, int64_t channels) {
+                          bool contact, int64_t channels, const at::Tensor& mean, const at::Tensor& scale,
+                          at::Tensor& raw) {
+  constexpr int64_t kMaxChannels = 64;
+  TORCH_CHECK(channels <= kMaxChannels, "fused_features: at most ", kMaxChannels, " channels");
   const int64_t B = h.size(0), N = h.size(2), J = T.size(2);
   at::Tensor H = at::empty({B, N, channels}, at::kFloat);
-  at::Tensor P_last, P_next;
+  raw = at::empty({B, N, 6}, at::kFloat);
+  const at::Tensor m = mean.to(at::kFloat).contiguous(), sc = scale.to(at::kFloat).contiguous();
+  const float* mp = m.data_ptr<float>();
+  const float* sp = sc.data_ptr<float>();
+  float* rp = raw.data_ptr<float>();
+  // The blended contact transforms [R | t] (B, 2, N_a, 12) of frames t-1 and t: one product for both.
+  at::Tensor M;
+  const float* cr = nullptr;
   if (contact) {
-    P_last = contact_points(g.contact_rest, g.contact_weights, T.select(1, 2)).contiguous();
-    P_next = contact_points(g.contact_rest, g.contact_weights, T.select(1, 3)).contiguous();
+    M = at::matmul(g.contact_weights, T.narrow(1, 2, 2).reshape({B, 2, J, 12})).contiguous();
+    cr = g.contact_rest.data_ptr<float>();
   }
   const float* hp = h.data_ptr<float>();
   const float* Tp = T.data_ptr<float>();
   const float* Sp = S.data_ptr<float>();
   const float* rest = g.rest_features.data_ptr<float>();
   const int64_t* fj = g.frame_joints.data_ptr<int64_t>();
-  const float* pl = contact ? P_last.data_ptr<float>() : nullptr;
-  const float* pn = contact ? P_next.data_ptr<float>() : nullptr;
+  const float* mp_contact = contact ? M.data_ptr<float>() : nullptr;
   float* out = H.data_ptr<float>();
   // Per joint: the axial vectors of R_2^T R_3 and R_1^T R_2, and gravity in the frame at t, (B, J, 9).
   std::vector<float> joint(static_cast<size_t>(B * J * 9));
@@ -122,7 +133,7 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
   at::parallel_for(0, B * N, 256, [&](int64_t begin, int64_t end) {
     for (int64_t bi = begin; bi < end; ++bi) {
       const int64_t b = bi / N, i = bi % N, j = fj[i];
-      float* o = out + bi * channels;
+      float o[kMaxChannels];
       const auto vec = [&](const float* base, int64_t frames, int64_t k) { return base + ((b * frames + k) * N + i) * 3; };
       // R^T v for the rotation of joint j at frame k.
       const auto to = [&](int64_t k, const float v[3], float* dst) {
@@ -151,13 +162,22 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
       for (int c = 0; c < 9; ++c) o[21 + c] = jv[c];
       for (int c = 0; c < kApparelRestChannels; ++c) o[30 + c] = rest[i * kApparelRestChannels + c];
       if (contact) {
-        const float* n = pn + (b * N + i) * 3;
-        const float* l = pl + (b * N + i) * 3;
+        // The contact point of frames t-1 and t: the blended [R | t] applied to the rest point (contact_points).
+        float l[3], n[3];
+        const float* p = cr + i * 3;
+        for (int64_t f = 0; f < 2; ++f) {
+          const float* m = mp_contact + ((b * 2 + f) * N + i) * 12;
+          float* P = f == 0 ? l : n;
+          for (int r = 0; r < 3; ++r) P[r] = (m[r * 4 + 0] * p[0] + m[r * 4 + 1] * p[1] + m[r * 4 + 2] * p[2]) + m[r * 4 + 3];
+        }
         const float reach[3] = {n[0] - a2[0], n[1] - a2[1], n[2] - a2[2]};
         const float step[3] = {n[0] - l[0], n[1] - l[1], n[2] - l[2]};
         to(2, reach, o + 37);
         to(2, step, o + 40);
       }
+      float* x = out + bi * channels;
+      for (int64_t c = 0; c < channels; ++c) x[c] = (o[c] - mp[c]) / sp[c];  // RunningNormalizer::normalize
+      std::copy(o, o + 6, rp + bi * 6);
     }
   });
   return H;
@@ -537,22 +557,23 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   check_inputs(h, T, S, g, options.num_joints, options.contact, options.reach_levels, "ApparelDynamicsNet");
   // Without autograd (inference) the features and the output come from the fused per-vertex loops.
   const bool fused = !at::GradMode::is_enabled() && fused_inputs(h, T, S, g);
-  at::Tensor R, H;
+  at::Tensor R, x, D;  // D: the raw first six channels
   if (fused) {
-    H = fused_features(h, T, S, g, options.contact, channels());
+    x = fused_features(h, T, S, g, options.contact, channels(), input_normalizer->mean, input_normalizer->scale, D);
   } else {
     R = vertex_rotations(T, g.frame_joints);
-    H = features_from(h, T, S, g, R);
+    const at::Tensor H = features_from(h, T, S, g, R);
+    x = input_normalizer->normalize(H);
+    D = H.narrow(2, 0, 6);
   }
-  at::Tensor x = input_normalizer->normalize(H);
   // The mesh neighbours, and with reach levels the chain's ancestors 1, 2, 4, ... hops towards the body.
   const at::Tensor neighbors =
       options.reach_levels > 0 ? at::cat({g.neighbors, g.ancestors.narrow(1, 0, options.reach_levels)}, 1) : g.neighbors;
   for (EdgeConv& block : blocks_) x = block->forward(x, neighbors);  // eq. (13)
   const at::Tensor change = target_normalizer->denormalize(decoder_->forward(x));
   // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
-  const at::Tensor d_last = H.narrow(2, 0, 3);
-  const at::Tensor d_t = rule_detail(d_last, d_last - H.narrow(2, 3, 3)) + change;
+  const at::Tensor d_last = D.narrow(2, 0, 3);
+  const at::Tensor d_t = rule_detail(d_last, d_last - D.narrow(2, 3, 3)) + change;
   const at::Tensor A_t = fused ? fused_output(T, S, d_t.contiguous(), g.frame_joints)
                                : S.select(1, 3) + from_frame(R.select(1, 3), d_t);
   if (detail) *detail = unbatched ? d_t.squeeze(0) : d_t;

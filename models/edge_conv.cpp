@@ -76,6 +76,22 @@ at::Tensor EdgeConvImpl::forward_factorized(const at::Tensor& h, const at::Tenso
   TORCH_CHECK(h.size(-1) == options.in_channels, "EdgeConv: h must have ", options.in_channels, " channels, got ",
               h.sizes());
   const int64_t C = options.in_channels;
+  if (!at::GradMode::is_enabled() && h.scalar_type() == at::kFloat) {
+    const at::Tensor& w = edge->weight;
+    const at::Tensor& b = edge->bias;
+    if (!inference_weights_.defined() || cached_weight_ != w.data_ptr() || cached_bias_ != b.data_ptr() ||
+        cached_weight_version_ != int64_t(w._version()) || cached_bias_version_ != int64_t(b._version())) {
+      const at::Tensor W1 = w.narrow(1, 0, C), W2 = w.narrow(1, C, C);
+      inference_weights_ = at::cat({W1 - W2, W2}, 0).contiguous();
+      inference_bias_ = at::cat({b, at::zeros_like(b)}, 0).contiguous();
+      cached_weight_ = w.data_ptr(), cached_bias_ = b.data_ptr();
+      cached_weight_version_ = int64_t(w._version()), cached_bias_version_ = int64_t(b._version());
+    }
+    const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;
+    const at::Tensor out =
+        gather_max_add_leaky(at::linear(x, inference_weights_, inference_bias_), neighbors, options.negative_slope);
+    return h.dim() == 2 ? out.squeeze(0) : out;
+  }
   const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
   return factorized(h, W1 - W2, W2, edge->bias, neighbors);
 }
@@ -103,13 +119,18 @@ at::Tensor EdgeConvImpl::forward_with_constant(const at::Tensor& h, const at::Te
 
 at::Tensor EdgeConvImpl::factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2,
                                     const at::Tensor& shift, const at::Tensor& neighbors) {
+  // Inference: one product [Wa | W2] h (the shift as the bias of its first half), then the neighbour max,
+  // the sum and sigma in one pass (gather_max_add_leaky).
+  if (!at::GradMode::is_enabled() && shift.dim() == 1 && h.scalar_type() == at::kFloat) {
+    const at::Tensor weights = at::cat({Wa, W2}, 0);
+    const at::Tensor bias = at::cat({shift, at::zeros_like(shift)}, 0);
+    const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;
+    const at::Tensor out = gather_max_add_leaky(at::linear(x, weights, bias), neighbors, options.negative_slope);
+    return h.dim() == 2 ? out.squeeze(0) : out;
+  }
   // (..., N, O): Wa h_i + shift, the shift as the product's bias when it is one vector, else one row per batch.
   at::Tensor a = shift.dim() == 1 ? at::linear(h, Wa, shift) : at::linear(h, Wa) + shift.unsqueeze(-2);
   const at::Tensor b = at::linear(h, W2);  // (..., N, O): W2 h_j, gathered below
-  if (!at::GradMode::is_enabled()) {       // inference: in place on the fresh product, same values
-    a.add_(gather_max(b, neighbors));
-    return at::leaky_relu_(a, options.negative_slope);  // eq. (13)
-  }
   return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
 }
 

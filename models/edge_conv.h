@@ -80,6 +80,14 @@ class EdgeConvImpl : public torch::nn::Module {
   EdgeConvOptions options;
 
  private:
+  // Inference (no autograd) weights of the factorised form, [W1 - W2; W2] (2 C_out, C_in) and [bias; 0], kept
+  // while the edge layer's tensors are the same ones at the same version (an optimizer step or a load
+  // changes the version), so that run-time frames do not rebuild them.
+  at::Tensor inference_weights_, inference_bias_;
+  const void* cached_weight_ = nullptr;
+  const void* cached_bias_ = nullptr;
+  int64_t cached_weight_version_ = -1, cached_bias_version_ = -1;
+
   // sigma(h Wa^T + shift + max_j h_j W2^T): Wa (C_out, C_h), W2 (C_out, C_h), shift (C_out) or (B, C_out).
   at::Tensor factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2, const at::Tensor& shift,
                         const at::Tensor& neighbors);

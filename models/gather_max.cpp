@@ -5,6 +5,8 @@
 #include <torch/csrc/autograd/custom_function.h>
 
 #include <algorithm>
+#include <atomic>
+#include <vector>
 
 namespace amt {
 
@@ -114,6 +116,58 @@ at::Tensor gather_max(const at::Tensor& values, const at::Tensor& neighbors) {
                                [&] { gather_max_kernel<scalar_t>(vc, n, out, nullptr); });
   }
   return values.dim() == 2 ? out.squeeze(0) : out;
+}
+
+at::Tensor gather_max_add_leaky(const at::Tensor& products, const at::Tensor& neighbors, double negative_slope) {
+  TORCH_CHECK(products.dim() == 3 && products.size(2) % 2 == 0 && products.scalar_type() == at::kFloat,
+              "gather_max_add_leaky: products must be (B, N, 2 C) float, got ", products.sizes(), " ",
+              products.scalar_type());
+  TORCH_CHECK(neighbors.dim() == 2 && neighbors.size(1) >= 1 && neighbors.size(0) == products.size(1) &&
+                  neighbors.scalar_type() == at::kLong,
+              "gather_max_add_leaky: neighbors must be (", products.size(1), ", K) int64 with K >= 1, got ",
+              neighbors.sizes());
+  const at::Tensor p = products.contiguous(), n = neighbors.contiguous();
+  const int64_t B = p.size(0), N_ = p.size(1), C_ = p.size(2) / 2, K_ = n.size(1);
+  at::Tensor out = at::empty({B, N_, C_}, p.options());
+  const float* v = p.data_ptr<float>();
+  const int64_t* nbr = n.data_ptr<int64_t>();
+  float* o = out.data_ptr<float>();
+  const float slope = static_cast<float>(negative_slope);
+  std::atomic<bool> out_of_range{false};
+  at::parallel_for(0, B * N_, 64, [&](int64_t begin, int64_t end) {
+    // Locals, not the captured references: stores through dst could alias those, which kept the loops
+    // below scalar and branchy.
+    const float negative = slope;
+    const int64_t C = C_, N = N_, K = K_;
+    for (int64_t bi = begin; bi < end; ++bi) {
+      const int64_t b = bi / N, i = bi % N;
+      const int64_t* row = nbr + i * K;
+      const float* src = v + b * N * 2 * C;
+      bool bad = false;
+      for (int64_t k = 0; k < K; ++k) bad |= row[k] < 0 || row[k] >= N;
+      if (bad) {
+        out_of_range = true;
+        continue;
+      }
+      float* __restrict dst = o + bi * C;
+      const float* __restrict first = src + row[0] * 2 * C + C;
+      for (int64_t c = 0; c < C; ++c) dst[c] = first[c];
+      for (int64_t k = 1; k < K; ++k) {
+        if (row[k] == row[0]) continue;  // neighbor_table's padding repeats the first entry: the max is the same
+        const float* __restrict x = src + row[k] * 2 * C + C;
+        for (int64_t c = 0; c < C; ++c) dst[c] = std::max(dst[c], x[c]);
+      }
+      // max / min arithmetic, not a branch: the signs are random, and a mispredicted branch per channel cost
+      // more than the whole gather. Exactly at::leaky_relu's values (one of the two terms is an exact zero).
+      const float* __restrict a = src + i * 2 * C;
+      for (int64_t c = 0; c < C; ++c) {
+        const float y = a[c] + dst[c];
+        dst[c] = std::max(y, 0.0f) + negative * std::min(y, 0.0f);
+      }
+    }
+  });
+  TORCH_CHECK(!out_of_range, "gather_max_add_leaky: neighbour indices must be in [0, ", N_, ")");
+  return out;
 }
 
 at::Tensor gather_max_reference(const at::Tensor& values, const at::Tensor& neighbors) {

@@ -18,4 +18,11 @@ at::Tensor gather_max(const at::Tensor& values, const at::Tensor& neighbors);
 /// Gradients of tied maxima are shared equally between the tied entries.
 at::Tensor gather_max_reference(const at::Tensor& values, const at::Tensor& neighbors);
 
+/// The inference form of a factorised EdgeConv block (no autograd), in one pass after its one product:
+///   products  (B, N, 2 C) float: per vertex [a_i | b_i], a = the centre term with its bias, b = the neighbour term
+///   neighbors (N, K) int64, entries in [0, N)
+/// returns (B, N, C): LeakyReLU(a_i + max_k b_{neighbors[i, k]}) with the given negative slope. Throws c10::Error
+/// for an index out of range.
+at::Tensor gather_max_add_leaky(const at::Tensor& products, const at::Tensor& neighbors, double negative_slope);
+
 }  // namespace amt

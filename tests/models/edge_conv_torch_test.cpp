@@ -102,7 +102,7 @@ TEST(EdgeConv, InferenceFormMatchesAHandComputedBlock) {
 }
 
 TEST(EdgeConv, InferenceFormEqualsPerEdgeEvaluation) {
-  // Without autograd (no_grad, inference mode) the factorised block runs in place on its products.
+  // Without autograd (no_grad, inference mode) the factorised block is one product and gather_max_add_leaky.
   at::manual_seed(11);
   EdgeConv conv(EdgeConvOptions(12, 16));
   const at::Tensor nbr = neighbor_table(30, grid_edges(5, 6));
@@ -130,6 +130,31 @@ TEST(EdgeConv, InferenceFormEqualsPerEdgeEvaluation) {
   at::Tensor bad = nbr.clone();
   bad[4][1] = 30;
   EXPECT_THROW(conv->forward(at::randn({30, 12}), bad), c10::Error);
+}
+
+// The inference form keeps its combined weights between calls; an optimizer-like in-place change of the
+// edge layer, or a new weight tensor, is seen at the next call.
+TEST(EdgeConv, InferenceWeightsFollowTheEdgeLayer) {
+  at::manual_seed(12);
+  EdgeConv conv(EdgeConvOptions(5, 7));
+  const at::Tensor nbr = neighbor_table(12, grid_edges(3, 4));
+  const at::Tensor h = at::randn({12, 5});
+  const auto inference = [&] {
+    c10::InferenceMode mode;
+    return conv->forward(h, nbr);
+  };
+  const at::Tensor first = inference();
+  EXPECT_LT((first - conv->forward_naive(h, nbr)).abs().max().item<float>(), 1e-5f);
+  {
+    torch::NoGradGuard no_grad;
+    conv->edge->weight.mul_(-0.5);
+    conv->edge->bias.add_(0.25);
+  }
+  const at::Tensor second = inference();
+  EXPECT_GT((second - first).abs().max().item<float>(), 0.1f);
+  EXPECT_LT((second - conv->forward_naive(h, nbr)).abs().max().item<float>(), 1e-5f);
+  conv->edge->weight = conv->edge->weight.detach().clone().mul_(3.0);
+  EXPECT_LT((inference() - conv->forward_naive(h, nbr)).abs().max().item<float>(), 1e-4f);
 }
 
 TEST(EdgeConv, ConstantChannelsEqualTheBroadcastInput) {

@@ -80,6 +80,29 @@ TEST(GatherMax, WorksWithoutAutograd) {
   EXPECT_TRUE(at::equal(out, gather_max_reference(values, nbr)));
 }
 
+// The fused inference form of a factorised EdgeConv block: exactly LeakyReLU(a_i + max_k b_{n(i, k)}) as
+// separate ops compute it, batched, with padded rows and a channel count that is not a multiple of four.
+TEST(GatherMax, AddLeakyEqualsTheSeparateOpsExactly) {
+  at::manual_seed(8);
+  at::Tensor nbr = random_neighbors(40, 6, 40);
+  nbr.narrow(1, 4, 2).copy_(nbr.select(1, 0).unsqueeze(1).expand({40, 2}));  // padding repeats the first entry
+  for (const int64_t C : {13, 48}) {
+    const at::Tensor products = at::randn({2, 40, 2 * C});
+    const at::Tensor a = products.narrow(2, 0, C), b = products.narrow(2, C, C).contiguous();
+    const at::Tensor expected = at::leaky_relu(a + gather_max_reference(b, nbr), 0.2);
+    const at::Tensor fused = gather_max_add_leaky(products, nbr, 0.2);
+    ASSERT_EQ(fused.sizes(), expected.sizes());
+    EXPECT_TRUE(at::equal(fused, expected)) << "C " << C << ": max difference " << (fused - expected).abs().max();
+    EXPECT_GT((fused < 0).sum().item<int64_t>(), 0);  // both sides of the LeakyReLU are exercised
+  }
+  // Out-of-range indices, odd widths and mismatched tables are errors, not reads out of bounds.
+  at::Tensor bad = nbr.clone();
+  bad[7][2] = 40;
+  EXPECT_THROW(gather_max_add_leaky(at::randn({1, 40, 8}), bad, 0.2), c10::Error);
+  EXPECT_THROW(gather_max_add_leaky(at::randn({1, 40, 7}), nbr, 0.2), c10::Error);
+  EXPECT_THROW(gather_max_add_leaky(at::randn({1, 39, 8}), nbr, 0.2), c10::Error);
+}
+
 TEST(GatherMax, RejectsBadNeighbors) {
   const at::Tensor values = at::randn({5, 3});
   EXPECT_THROW(gather_max(values, at::tensor({0, 5}, at::kLong).view({1, 2})), c10::Error);
