@@ -14,7 +14,7 @@
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (30000), SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (40000) and APPAREL_STEPS
-# (8000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
+# (16000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
 # weights).
@@ -117,7 +117,7 @@ if [[ $modules == *" apparel "* ]]; then
       --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.003 --apparel-options "$apparel" &&
       run apparel apparel "${base[@]}" "${skinning_args[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
         --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
-        --steps "${APPAREL_STEPS:-8000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
+        --steps "${APPAREL_STEPS:-16000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
         --noise 0.003 --rest-start 0.2 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" \
