@@ -832,7 +832,6 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       if (!resume_paths.empty()) {
         AMT_CHECK(!training_parameters.empty(), resume_paths[i], ": training_parameters: expected the parameters ",
                   "of a run with --ema (config.ema ", o.ema, "), found none");
-        swap_average(part);  // the average back in part.average ...
         const std::vector<at::Tensor> parameters = part.module->parameters();
         for (size_t k = 0; k < parameters.size(); ++k) at::Tensor(parameters[k]).copy_(training_parameters[k]);
       }
