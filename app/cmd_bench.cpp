@@ -31,8 +31,12 @@
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/garment/cloth_retarget.h"
 #include "data_tools/geometry/error.h"
+#include "data_tools/geometry/geodesic.h"
+#include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/lbs_torch.h"
+#include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/retarget.h"
+#include "data_tools/geometry/shapes.h"
 #include "data_tools/geometry/threads.h"
 #include "infer/glb_stream_writer.h"
 #include "infer/runtime_benchmark_torch.h"
@@ -41,10 +45,6 @@
 #include "models/skinning_overfit.h"
 #include "train/pipeline.h"
 #include "train/samples.h"
-#include "data_tools/geometry/geodesic.h"
-#include "data_tools/geometry/lbs.h"
-#include "data_tools/geometry/procedural_motion.h"
-#include "data_tools/geometry/shapes.h"
 
 namespace amt::app {
 
@@ -99,8 +99,6 @@ double median_seconds(int repeats, const std::function<void()>& fn) {
   return median_times(repeats, fn).wall;
 }
 
-
-
 // LBS throughput with 4 influences per vertex over frames of a walk.
 void bench_lbs(const BenchOptions& o) {
   const Skeleton s = canonical_skeleton();
@@ -153,8 +151,6 @@ void bench_skinning(const BenchOptions& o) {
               run.steps, seconds, 1e3 * seconds / run.steps, repeats, run.initial_loss, run.final_loss);
 }
 
-
-
 // The shipped networks when `dir` holds them, else freshly initialised ones of the default options
 // (seeded): the per-frame cost depends on the architecture, not on the weights.
 ModelBundle bench_bundle(const std::string& given, std::string& what) {
@@ -199,17 +195,20 @@ void bench_runtime(const BenchOptions& o) {
     options.repeats = o.repeats;
     const RuntimeFigures r = measure_runtime(bundle, options);
     const int N = r.vertices;
-    std::printf("runtime   %6d vertices (%d apparel, %.0f %%; as built %d, %.0f %%), %d faces: %s; bind %.2f s (%d threads)\n",
-                N, r.apparel_vertices, 100.0 * r.apparel_vertices / N, r.true_apparel_vertices,
-                100.0 * r.true_apparel_vertices / N, r.faces, r.character.c_str(), r.bind_seconds, o.runtime_threads.back());
+    std::printf(
+        "runtime   %6d vertices (%d apparel, %.0f %%; as built %d, %.0f %%), %d faces: %s; bind %.2f s (%d threads)\n",
+        N, r.apparel_vertices, 100.0 * r.apparel_vertices / N, r.true_apparel_vertices,
+        100.0 * r.true_apparel_vertices / N, r.faces, r.character.c_str(), r.bind_seconds, o.runtime_threads.back());
     for (const RuntimeThreadFigures& t : r.per_thread) {
-      std::printf("runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
-                  "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f ms; "
-                  "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
-                  "RSS %.0f MB, peak %.0f MB\n",
-                  N, t.threads, t.threads > 1 ? "s" : "", t.median_ms, t.p95_ms, 1e3 / t.median_ms, t.model_ms, t.lbs_ms,
-                  t.apparel_ms, t.refiner_ms, t.penetration_ms, t.output_ms, 100.0 * t.inside_before,
-                  100.0 * t.inside_after, 100.0 * t.carried_share, t.resident_mb, r.peak_resident_mb);
+      std::printf(
+          "runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
+          "split (medians) model %.2f [LBS %.2f, apparel network %.2f, refiner %.2f], penetration %.2f, output %.2f "
+          "ms; "
+          "penetration %.2f %% -> %.2f %% (inside tests carried over from the previous frame: %.0f %%); "
+          "RSS %.0f MB, peak %.0f MB\n",
+          N, t.threads, t.threads > 1 ? "s" : "", t.median_ms, t.p95_ms, 1e3 / t.median_ms, t.model_ms, t.lbs_ms,
+          t.apparel_ms, t.refiner_ms, t.penetration_ms, t.output_ms, 100.0 * t.inside_before, 100.0 * t.inside_after,
+          100.0 * t.carried_share, t.resident_mb, r.peak_resident_mb);
     }
     std::fflush(stdout);
   }

@@ -11,8 +11,8 @@
 #include "amt/version.h"
 #include "app/commands.h"
 #include "app/repository.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/viewer_folder.h"
+#include "data_tools/geometry/error.h"
 #include "infer/runtime_benchmark_torch.h"
 #include "train/evaluate.h"
 #include "train/evaluation_viewer.h"
@@ -62,7 +62,8 @@ std::vector<RuntimeFigures> eval_runtime(const ModelBundle& bundle, int repeats,
   real.open_parts = true;
   real.segmenter_mask = true;
   real.repeats = repeats;
-  if (!quiet) std::cerr << "eval: runtime on a real-mesh stand-in (" << real.vertices << " vertices, open parts)" << std::endl;
+  if (!quiet)
+    std::cerr << "eval: runtime on a real-mesh stand-in (" << real.vertices << " vertices, open parts)" << std::endl;
   figures.push_back(measure_runtime(bundle, real, "real-mesh stand-in, segmenter mask"));
   figures.back().target_ms = 16, figures.back().target_bind_seconds = 5;
   RuntimeBenchmarkOptions dressed;
@@ -167,10 +168,11 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   eval->add_flag("--no-penetration", [command](int64_t) { command->options.penetration = false; },
                  "Skip the penetration measure (a winding-number tree per frame)");
-  eval->add_flag("--runtime", command->runtime,
-                 "Also measure the per-frame runtime (as amt bench --suite runtime) on a real-mesh stand-in (14.5k "
-                 "vertices of open parts, the segmenter's mask) and a 20k-vertex dressed character, on 1 and 2 threads, "
-                 "for the report's Runtime section and targets");
+  eval->add_flag(
+      "--runtime", command->runtime,
+      "Also measure the per-frame runtime (as amt bench --suite runtime) on a real-mesh stand-in (14.5k "
+      "vertices of open parts, the segmenter's mask) and a 20k-vertex dressed character, on 1 and 2 threads, "
+      "for the report's Runtime section and targets");
   eval->add_option("--runtime-repeats", command->runtime_repeats, "Timed frames per runtime figure")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();

@@ -223,9 +223,10 @@ void add_train_command(CLI::App& app) {
                     "(where a piece hangs from the body)")
       ->check(CLI::Range(0.01, 1000.0))
       ->capture_default_str();
-  train->add_option("--ema", command->options.ema,
-                    "Keep an exponential moving average of the parameters with this decay per step (e.g. 0.999; 0: "
-                    "off): the checkpoint's network and the validation are the average")
+  train
+      ->add_option("--ema", command->options.ema,
+                   "Keep an exponential moving average of the parameters with this decay per step (e.g. 0.999; 0: "
+                   "off): the checkpoint's network and the validation are the average")
       ->check(CLI::Range(0.0, 0.99999))
       ->capture_default_str();
   train->add_flag("--quiet", command->quiet, "No progress line on stderr");

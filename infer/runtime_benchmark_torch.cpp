@@ -79,9 +79,9 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
       generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(o.vertices * body_share)));
   // Open parts: the items of a typical real model (twin tails, a skirt on physics chains, a tie).
   const DressedCharacter dressed =
-      o.open_parts
-          ? dress_character_with(body, {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails, ApparelKind::kRibbons}, 7, dress)
-          : dress_character(body, 7, dress);
+      o.open_parts ? dress_character_with(
+                         body, {ApparelKind::kPleatedSkirt, ApparelKind::kTwinTails, ApparelKind::kRibbons}, 7, dress)
+                   : dress_character(body, 7, dress);
   TriMesh mesh = dressed.mesh;
   std::vector<uint8_t> mask = dressed.apparel_mask;
   r.character = "a dressed procedural body";
@@ -99,8 +99,8 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
       bind_cached(bundle, mesh, body.skeleton.rest_joints, o.segmenter_mask ? std::vector<uint8_t>{} : mask, "");
   r.bind_seconds = bind.seconds;
   const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
-  r.apparel_vertices = count_ones(std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(),
-                                                       bound_mask.data_ptr<uint8_t>() + bound_mask.numel()));
+  r.apparel_vertices = count_ones(
+      std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel()));
   const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
   const std::filesystem::path scratch =
       std::filesystem::path(o.scratch_dir.empty() ? std::filesystem::temp_directory_path().string() : o.scratch_dir) /
@@ -124,7 +124,8 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
         const auto w = std::chrono::steady_clock::now();
         writer.append(V);
         times.output = std::chrono::duration<double>(std::chrono::steady_clock::now() - w).count();
-        totals.push_back(times.total()), model.push_back(times.model), pen.push_back(times.penetration), out.push_back(times.output);
+        totals.push_back(times.total()), model.push_back(times.model), pen.push_back(times.penetration),
+            out.push_back(times.output);
         before.inside += report.before.inside, before.total += report.before.total;
         after.inside += report.after.inside, after.total += report.after.total;
         carried += report.carried;

@@ -119,7 +119,7 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
       for (int pair = 0; pair < 2; ++pair) {
         const float* A = rot(b, pair == 0 ? 2 : 1, j);  // R_a
         const float* C = rot(b, pair == 0 ? 3 : 2, j);  // R_b
-        const auto m = [&](int r, int c) {  // (R_a^T R_b)_rc = sum_k A_kr C_kc
+        const auto m = [&](int r, int c) {              // (R_a^T R_b)_rc = sum_k A_kr C_kc
           return A[0 * 4 + r] * C[0 * 4 + c] + A[1 * 4 + r] * C[1 * 4 + c] + A[2 * 4 + r] * C[2 * 4 + c];
         };
         o[pair * 3 + 0] = 0.5f * (m(2, 1) - m(1, 2));
@@ -134,7 +134,9 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
     for (int64_t bi = begin; bi < end; ++bi) {
       const int64_t b = bi / N, i = bi % N, j = fj[i];
       float o[kMaxChannels];
-      const auto vec = [&](const float* base, int64_t frames, int64_t k) { return base + ((b * frames + k) * N + i) * 3; };
+      const auto vec = [&](const float* base, int64_t frames, int64_t k) {
+        return base + ((b * frames + k) * N + i) * 3;
+      };
       // R^T v for the rotation of joint j at frame k.
       const auto to = [&](int64_t k, const float v[3], float* dst) {
         const float* R = rot(b, k, j);
@@ -168,7 +170,8 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
         for (int64_t f = 0; f < 2; ++f) {
           const float* m = mp_contact + ((b * 2 + f) * N + i) * 12;
           float* P = f == 0 ? l : n;
-          for (int r = 0; r < 3; ++r) P[r] = (m[r * 4 + 0] * p[0] + m[r * 4 + 1] * p[1] + m[r * 4 + 2] * p[2]) + m[r * 4 + 3];
+          for (int r = 0; r < 3; ++r)
+            P[r] = (m[r * 4 + 0] * p[0] + m[r * 4 + 1] * p[1] + m[r * 4 + 2] * p[2]) + m[r * 4 + 3];
         }
         const float reach[3] = {n[0] - a2[0], n[1] - a2[1], n[2] - a2[2]};
         const float step[3] = {n[0] - l[0], n[1] - l[1], n[2] - l[2]};
@@ -208,7 +211,8 @@ at::Tensor fused_output(const at::Tensor& T, const at::Tensor& S, const at::Tens
       const float* s = Sp + ((b * 4 + 3) * N + i) * 3;
       const float* v = dp + bi * 3;
       // Summed in from_frame's order, so that a zero network reproduces the rule exactly.
-      for (int r = 0; r < 3; ++r) out[bi * 3 + r] = s[r] + ((R[r * 4 + 0] * v[0] + R[r * 4 + 1] * v[1]) + R[r * 4 + 2] * v[2]);
+      for (int r = 0; r < 3; ++r)
+        out[bi * 3 + r] = s[r] + ((R[r * 4 + 0] * v[0] + R[r * 4 + 1] * v[1]) + R[r * 4 + 2] * v[2]);
     }
   });
   return A;
@@ -574,8 +578,8 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   // d_{t-1} and d_{t-2} are the first input channels (d_{t-1}, d_{t-1} - d_{t-2}).
   const at::Tensor d_last = D.narrow(2, 0, 3);
   const at::Tensor d_t = rule_detail(d_last, d_last - D.narrow(2, 3, 3)) + change;
-  const at::Tensor A_t = fused ? fused_output(T, S, d_t.contiguous(), g.frame_joints)
-                               : S.select(1, 3) + from_frame(R.select(1, 3), d_t);
+  const at::Tensor A_t =
+      fused ? fused_output(T, S, d_t.contiguous(), g.frame_joints) : S.select(1, 3) + from_frame(R.select(1, 3), d_t);
   if (detail) *detail = unbatched ? d_t.squeeze(0) : d_t;
   return unbatched ? A_t.squeeze(0) : A_t;
 }

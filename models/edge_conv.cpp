@@ -130,7 +130,7 @@ at::Tensor EdgeConvImpl::factorized(const at::Tensor& h, const at::Tensor& Wa, c
   }
   // (..., N, O): Wa h_i + shift, the shift as the product's bias when it is one vector, else one row per batch.
   at::Tensor a = shift.dim() == 1 ? at::linear(h, Wa, shift) : at::linear(h, Wa) + shift.unsqueeze(-2);
-  const at::Tensor b = at::linear(h, W2);  // (..., N, O): W2 h_j, gathered below
+  const at::Tensor b = at::linear(h, W2);                                       // (..., N, O): W2 h_j, gathered below
   return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
 }
 

@@ -471,7 +471,8 @@ TEST(Report, RuntimeFiguresAreTabledAndCheckedAgainstTheirTargets) {
   real.label = "stand-in";
   real.character = "a body of open parts";
   real.mask = "the segmenter";
-  real.vertices = 1000, real.faces = 1900, real.repeats = 3, real.apparel_vertices = 150, real.true_apparel_vertices = 160;
+  real.vertices = 1000, real.faces = 1900, real.repeats = 3, real.apparel_vertices = 150,
+  real.true_apparel_vertices = 160;
   real.bind_seconds = 6.5, real.peak_resident_mb = 300;
   real.target_ms = 16, real.target_bind_seconds = 5, real.target_threads = 2;
   RuntimeThreadFigures one, two;
@@ -496,18 +497,23 @@ TEST(Report, RuntimeFiguresAreTabledAndCheckedAgainstTheirTargets) {
   const std::string text = md.str();
   EXPECT_NE(text.find("## Runtime"), std::string::npos) << text;
   EXPECT_NE(text.find("apparel mask from the segmenter: 150 vertices (15.0 %; as built 160, 16.0 %); bind 6.50 s"),
-            std::string::npos) << text;
+            std::string::npos)
+      << text;
   EXPECT_NE(text.find("| 1 | 20.25 | 30.00 | 1.00 | 7.00 | 2.00 | 9.00 | 0.25 | 1.0 % -> 0.0 % | 96.0 % |"),
-            std::string::npos) << text;
-  EXPECT_NE(text.find("- runtime, stand-in: per frame on 2 threads = 7.50 ms (target <= 16 ms): met\n"), std::string::npos)
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("- runtime, stand-in: per frame on 2 threads = 7.50 ms (target <= 16 ms): met\n"),
+            std::string::npos)
       << text;
   EXPECT_NE(text.find("- runtime, stand-in: bind = 6.50 s (target <= 5 s): NOT met\n"), std::string::npos) << text;
   EXPECT_NE(text.find("- runtime, dressed: per frame on 2 threads = 13.00 ms (target <= 12 ms): NOT met\n"),
-            std::string::npos) << text;
+            std::string::npos)
+      << text;
   EXPECT_EQ(text.find("- runtime, dressed: bind"), std::string::npos) << text;  // no bind target
   // 7 ms of apparel network against 1 ms of LBS on one thread.
   EXPECT_NE(text.find("- runtime, dressed: apparel network / LBS on 1 thread = 7.00 (target <= 5.10): NOT met\n"),
-            std::string::npos) << text;
+            std::string::npos)
+      << text;
   EXPECT_EQ(text.find("- runtime, stand-in: apparel network"), std::string::npos) << text;  // no ratio target
   EXPECT_EQ(text.find("per frame on 1 thread ="), std::string::npos) << text;  // the target is on 2 threads
   std::stringstream json;

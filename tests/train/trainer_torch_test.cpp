@@ -388,8 +388,10 @@ TEST(Trainer, MovingAverageIsTheCheckpointsNetworkAndResumesBitExactly) {
     o.lr_schedule = "constant";
     o.lr_decay_steps = 3;  // the curriculum's phases at the same steps in every run
     o.ema = ema;
-    if (resume.empty()) o.init = start;
-    else o.resume = resume;
+    if (resume.empty())
+      o.init = start;
+    else
+      o.resume = resume;
     return train_module(ModuleKind::kApparel, {split_dataset()}, o);
   };
   std::vector<std::vector<at::Tensor>> plain = {network(start)};
