@@ -69,6 +69,7 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
   r.label = label;
   r.repeats = o.repeats;
   r.mask = o.segmenter_mask ? "the segmenter" : "the dressed character";
+  const int caller_threads = thread_count();  // restored at the end
   set_thread_count(o.threads.back());
   ApparelOptions dress;
   dress.vertex_fraction = o.open_parts ? kOpenPartsApparelFraction : 0.3f;
@@ -149,6 +150,7 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
     r.per_thread.push_back(f);
   }
   r.peak_resident_mb = peak_resident_mb();
+  set_thread_count(caller_threads);
   return r;
 }
 

@@ -30,7 +30,8 @@ struct RuntimeBenchmarkOptions {
   std::string scratch_dir;
 };
 
-/// Measures `bundle` as `options` say. `label` names the measurement in the report; no targets are set.
+/// Measures `bundle` as `options` say (the caller's thread count is restored afterwards). `label` names the
+/// measurement in the report; no targets are set.
 RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmarkOptions& options,
                                const std::string& label = "");
 

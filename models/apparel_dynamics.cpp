@@ -80,8 +80,8 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
 // The inference path of features_from in one pass (no autograd): the same channels, computed per vertex
 // from the raw arrays instead of through some forty tensor operations on (B, 4, N_a, 3, 3) rotations,
 // which cost more than the network's products at run time (a profile of the runtime step). The blended
-// contact transforms stay one matrix product each. Values agree with features_from to float rounding
-// (tested). Inputs float32 and contiguous.
+// contact transforms of both frames stay one matrix product. Values agree with features_from to float
+// rounding (tested). Inputs float32 and contiguous.
 // Returns the channels normalised by (mean, scale) (the input normaliser's), and the raw first six
 // (d_{t-1}, d_{t-1} - d_{t-2}) in `raw` (B, N_a, 6).
 at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g,
@@ -90,7 +90,7 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
   constexpr int64_t kMaxChannels = 64;
   TORCH_CHECK(channels <= kMaxChannels, "fused_features: at most ", kMaxChannels, " channels");
   const int64_t B = h.size(0), N = h.size(2), J = T.size(2);
-  at::Tensor H = at::empty({B, N, channels}, at::kFloat);
+  at::Tensor X = at::empty({B, N, channels}, at::kFloat);
   raw = at::empty({B, N, 6}, at::kFloat);
   const at::Tensor m = mean.to(at::kFloat).contiguous(), sc = scale.to(at::kFloat).contiguous();
   const float* mp = m.data_ptr<float>();
@@ -109,7 +109,7 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
   const float* rest = g.rest_features.data_ptr<float>();
   const int64_t* fj = g.frame_joints.data_ptr<int64_t>();
   const float* mp_contact = contact ? M.data_ptr<float>() : nullptr;
-  float* out = H.data_ptr<float>();
+  float* out = X.data_ptr<float>();
   // Per joint: the axial vectors of R_2^T R_3 and R_1^T R_2, and gravity in the frame at t, (B, J, 9).
   std::vector<float> joint(static_cast<size_t>(B * J * 9));
   const auto rot = [&](int64_t b, int64_t k, int64_t j) { return Tp + (((b * 4 + k) * J + j) * 12); };  // row-major 3x4
@@ -183,7 +183,7 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
       std::copy(o, o + 6, rp + bi * 6);
     }
   });
-  return H;
+  return X;
 }
 
 // Whether the fused loops can read the inputs as they are: float32, contiguous, on the CPU.

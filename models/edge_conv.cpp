@@ -87,10 +87,7 @@ at::Tensor EdgeConvImpl::forward_factorized(const at::Tensor& h, const at::Tenso
       cached_weight_ = w.data_ptr(), cached_bias_ = b.data_ptr();
       cached_weight_version_ = int64_t(w._version()), cached_bias_version_ = int64_t(b._version());
     }
-    const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;
-    const at::Tensor out =
-        gather_max_add_leaky(at::linear(x, inference_weights_, inference_bias_), neighbors, options.negative_slope);
-    return h.dim() == 2 ? out.squeeze(0) : out;
+    return inference_block(h, inference_weights_, inference_bias_, neighbors);
   }
   const at::Tensor W1 = edge->weight.narrow(1, 0, C), W2 = edge->weight.narrow(1, C, C);  // (O, C) each
   return factorized(h, W1 - W2, W2, edge->bias, neighbors);
@@ -119,19 +116,19 @@ at::Tensor EdgeConvImpl::forward_with_constant(const at::Tensor& h, const at::Te
 
 at::Tensor EdgeConvImpl::factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2,
                                     const at::Tensor& shift, const at::Tensor& neighbors) {
-  // Inference: one product [Wa | W2] h (the shift as the bias of its first half), then the neighbour max,
-  // the sum and sigma in one pass (gather_max_add_leaky).
-  if (!at::GradMode::is_enabled() && shift.dim() == 1 && h.scalar_type() == at::kFloat) {
-    const at::Tensor weights = at::cat({Wa, W2}, 0);
-    const at::Tensor bias = at::cat({shift, at::zeros_like(shift)}, 0);
-    const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;
-    const at::Tensor out = gather_max_add_leaky(at::linear(x, weights, bias), neighbors, options.negative_slope);
-    return h.dim() == 2 ? out.squeeze(0) : out;
-  }
+  if (!at::GradMode::is_enabled() && shift.dim() == 1 && h.scalar_type() == at::kFloat)
+    return inference_block(h, at::cat({Wa, W2}, 0), at::cat({shift, at::zeros_like(shift)}, 0), neighbors);
   // (..., N, O): Wa h_i + shift, the shift as the product's bias when it is one vector, else one row per batch.
   at::Tensor a = shift.dim() == 1 ? at::linear(h, Wa, shift) : at::linear(h, Wa) + shift.unsqueeze(-2);
   const at::Tensor b = at::linear(h, W2);                                       // (..., N, O): W2 h_j, gathered below
   return at::leaky_relu(a + gather_max(b, neighbors), options.negative_slope);  // eq. (13)
+}
+
+at::Tensor EdgeConvImpl::inference_block(const at::Tensor& h, const at::Tensor& weights, const at::Tensor& bias,
+                                         const at::Tensor& neighbors) const {
+  const at::Tensor x = h.dim() == 2 ? h.unsqueeze(0) : h;
+  const at::Tensor out = gather_max_add_leaky(at::linear(x, weights, bias), neighbors, options.negative_slope);
+  return h.dim() == 2 ? out.squeeze(0) : out;
 }
 
 at::Tensor EdgeConvImpl::forward_naive(const at::Tensor& h, const at::Tensor& neighbors) {

@@ -88,6 +88,11 @@ class EdgeConvImpl : public torch::nn::Module {
   const void* cached_bias_ = nullptr;
   int64_t cached_weight_version_ = -1, cached_bias_version_ = -1;
 
+  // Inference (no autograd): one product [Wa; W2] h + [shift; 0] (weights (2 C_out, C_h), bias (2 C_out)), then
+  // the neighbour max, the sum and sigma in one pass (gather_max_add_leaky). h (B, N, C_h) or (N, C_h).
+  at::Tensor inference_block(const at::Tensor& h, const at::Tensor& weights, const at::Tensor& bias,
+                             const at::Tensor& neighbors) const;
+
   // sigma(h Wa^T + shift + max_j h_j W2^T): Wa (C_out, C_h), W2 (C_out, C_h), shift (C_out) or (B, C_out).
   at::Tensor factorized(const at::Tensor& h, const at::Tensor& Wa, const at::Tensor& W2, const at::Tensor& shift,
                         const at::Tensor& neighbors);

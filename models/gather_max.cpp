@@ -153,7 +153,6 @@ at::Tensor gather_max_add_leaky(const at::Tensor& products, const at::Tensor& ne
       const float* __restrict first = src + row[0] * 2 * C + C;
       for (int64_t c = 0; c < C; ++c) dst[c] = first[c];
       for (int64_t k = 1; k < K; ++k) {
-        if (row[k] == row[0]) continue;  // neighbor_table's padding repeats the first entry: the max is the same
         const float* __restrict x = src + row[k] * 2 * C + C;
         for (int64_t c = 0; c < C; ++c) dst[c] = std::max(dst[c], x[c]);
       }

@@ -50,6 +50,7 @@ TEST(RuntimeBenchmark, MeasuresTheGeneratedCharacterOnEachThreadCount) {
   }
   EXPECT_TRUE(std::isfinite(r.bind_seconds) && r.bind_seconds > 0);
   EXPECT_TRUE(std::filesystem::is_empty(o.scratch_dir));  // the scratch GLB is removed
+  EXPECT_EQ(thread_count(), 1);                          // the caller's thread count, after measuring on 2
 
   o.open_parts = true;
   o.segmenter_mask = true;
