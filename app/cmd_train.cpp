@@ -142,6 +142,17 @@ void add_train_command(CLI::App& app) {
                    "skinning: weight of a direct KL loss against the ground-truth weights (0: the paper's "
                    "indirect supervision through LBS only)")
       ->capture_default_str();
+  train
+      ->add_option("--edge-weight", o.weights.edge,
+                   "lambda_e: weight of the edge-length losses against the rest mesh (skinning, apparel, refiner; "
+                   "the paper's 100)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  train
+      ->add_option("--regularizer-weight", o.weights.regularizer,
+                   "lambda_r: weight of the refiner's L2 loss on its displacements (the paper's 0.01)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   train->add_option("--batch", o.batch, "Samples per step")->capture_default_str();
   train->add_option("--window", o.window, "Frames per apparel / refiner window (3 history + targets)")
       ->capture_default_str();

@@ -24,7 +24,9 @@ TEST(Usage, UnknownCommandsAndOptionsAndBadValuesAreOneLineErrors) {
         {"not expected: --bogus", "(amt animate --help lists the options)"}},
        {{"animate", "--motion", "y.bvh", "--out", "z.glb"}, {"--character is required"}},
        {{"dataset", "build", "--out", "built", "--characters", "many"}, {"--characters", "many"}},
-       {{"bench", "--repeats", "0"}, {"--repeats", "0", "(amt bench --help lists the options)"}}},
+       {{"bench", "--repeats", "0"}, {"--repeats", "0", "(amt bench --help lists the options)"}},
+       {{"train", "refiner", "--data", "d", "--out", "o", "--edge-weight", "-1"},
+        {"--edge-weight", "-1", "(amt train --help lists the options)"}}},
       2);
 }
 
