@@ -95,14 +95,21 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
   return text;
 }
 
-// CRC-32 of a bind cache's payload: the key and every stored field (name and tensor) in fields() order.
+// The counts of BoundCharacter::hung as the archive stores them: (2) int64, pinned and unnailed.
+constexpr const char* kHungKey = "hung_pieces";
+at::Tensor hung_tensor(const HungPieces& hung) {
+  return at::tensor({int64_t(hung.pinned), int64_t(hung.unnailed)}, at::kLong);
+}
+
+// CRC-32 of a bind cache's payload: the key, every stored field (name and tensor) in fields() order, then the
+// hung pieces' counts.
 uint32_t bind_crc32(const std::string& key, const BoundCharacter& bound) {
   uint32_t crc = crc32_update(0, key);
   for (const auto& [name, member] : fields()) {
     const at::Tensor& t = bound.*member;
     if (t.defined()) crc = crc32_update(crc32_update(crc, std::string_view(name)), t);
   }
-  return crc;
+  return crc32_update(crc32_update(crc, std::string_view(kHungKey)), hung_tensor(bound.hung));
 }
 
 void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound) {
@@ -114,6 +121,7 @@ void save_bind(const std::string& path, const std::string& key, const BoundChara
     const at::Tensor& t = bound.*member;
     if (t.defined()) archive.write(name, t.clone());  // clone: inference tensors cannot be saved as views
   }
+  archive.write(kHungKey, hung_tensor(bound.hung));
   archive.write("crc32", c10::IValue(int64_t(bind_crc32(key, bound))));
   save_archive_atomically(archive, path, "bind cache");
 }
@@ -156,6 +164,11 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     at::Tensor t;
     if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
   }
+  at::Tensor hung;
+  if (!archive.try_read(kHungKey, hung) || hung.scalar_type() != at::kLong || hung.numel() != 2) {
+    return miss(std::string("damaged cache file (no ") + kHungKey + ")");
+  }
+  loaded.hung = HungPieces{int(hung[0].item<int64_t>()), int(hung[1].item<int64_t>())};
   if (!archive.try_read("crc32", value) || !value.isInt()) return miss("no checksum (written by an older amt)");
   if (value.toInt() != int64_t(bind_crc32(key, loaded))) return miss("damaged cache file (checksum mismatch)");
   bound = std::move(loaded);

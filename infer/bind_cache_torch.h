@@ -5,8 +5,9 @@
 // the rest joints, an apparel-mask override, and the bytes of the model's checkpoint files. A changed
 // mesh or model gives another key, and the stale file is recomputed and replaced.
 //
-// File: a torch::serialize archive (TorchScript zip) with format "amt-bind", version 1, the key, and
-// one tensor per BoundCharacter field; written to "<path>.tmp" and renamed.
+// File: a torch::serialize archive (TorchScript zip) with format "amt-bind", version kBindVersion, the key, and
+// one tensor per BoundCharacter field (the hung pieces' two counts as one int64 tensor), and a CRC-32 of all of
+// it; written to "<path>.tmp" and renamed.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -18,7 +19,7 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 4;  // 4: apparel pieces hung (hang_apparel_pieces)
+inline constexpr int64_t kBindVersion = 5;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;

@@ -369,6 +369,7 @@ AnimateSummary animate(const AnimateOptions& o) {
       bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path);
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
+  s.hung = bind.bound.hung;
   if (o.verbose) {
     std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
               << " in " << bind.seconds << " s\n";
@@ -456,6 +457,14 @@ std::string describe(const AnimateSummary& s) {
   std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%, mask from ", s.vertices,
                 s.apparel_vertices, 100.0 * s.apparel_vertices / std::max(1, s.vertices));
   out << line << s.apparel_source << ")\n";
+  if (s.hung.pinned > 0 || s.hung.unnailed > 0) {
+    std::snprintf(line, sizeof(line),
+                  "apparel mask made to hang from the body: %d floating piece%s pinned by %s lowest-probability "
+                  "vertices, %d extra body island%s made apparel\n",
+                  s.hung.pinned, s.hung.pinned == 1 ? "" : "s", s.hung.pinned == 1 ? "its" : "their", s.hung.unnailed,
+                  s.hung.unnailed == 1 ? "" : "s");
+    out << line;
+  }
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
     std::snprintf(line, sizeof(line), "time per frame: median %.2f ms, p95 %.2f ms (physics and skinning %.2f, output %.2f ms mean)\n",

@@ -122,6 +122,8 @@ struct AnimateSummary {
   int vertices = 0, apparel_vertices = 0;
   /// Where the apparel mask came from ("the segmenter", "the rig: ...", "the file ...").
   std::string apparel_source;
+  /// What the bind changed in the segmenter's mask so that each piece hangs from one place.
+  HungPieces hung;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.

@@ -321,7 +321,8 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());
     c.apparel_mask = options.apparel_mask.to(at::kBool).contiguous();
   } else {
-    c.apparel_mask = hang_apparel_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e));
+    c.apparel_mask =
+        hang_apparel_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e), kFloatingPiecePinShare, &c.hung);
   }
   c.refiner_prob = c.apparel_mask.to(at::kFloat);
   c.apparel_ids = at::nonzero(c.apparel_mask).flatten().contiguous();

@@ -103,6 +103,11 @@ struct BindOptions {
   bool all_vertex_weights = false;
 };
 
+/// What hang_apparel_pieces changed: pieces pinned, and body islands made apparel.
+struct HungPieces {
+  int pinned = 0, unnailed = 0;
+};
+
 /// Everything the per-frame step needs about one character, computed once from its rest mesh.
 /// Vertex sets are ascending index lists; "body" is the complement of the apparel mask.
 struct BoundCharacter {
@@ -115,6 +120,8 @@ struct BoundCharacter {
   /// apparel_mask (N) bool, the mask in use: the override, or p̂ > 0.5 with each piece made to hang from one
   /// place (hang_apparel_pieces).
   at::Tensor apparel_mask;
+  /// What hang_apparel_pieces changed in the segmenter's mask (zeros when the mask was given).
+  HungPieces hung;
   /// refiner_prob (N) float, the apparel input of the refiner: the mask in use as 0/1, the form the
   /// refiner is trained with.
   at::Tensor refiner_prob;
@@ -157,11 +164,6 @@ struct BoundCharacter {
 
 /// The share of a floating piece held by the body (hang_apparel_pieces).
 inline constexpr double kFloatingPiecePinShare = 0.05;
-
-/// What hang_apparel_pieces changed: pieces pinned, and body islands made apparel.
-struct HungPieces {
-  int pinned = 0, unnailed = 0;
-};
 
 /// The segmenter's mask made to hang from the body as the dataset's pieces do: each piece hangs from one place, a
 /// single region of its first rows that a body bone holds rigidly and the ground truth calls body (4-27 % of a

@@ -107,6 +107,27 @@ TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
   EXPECT_TRUE(bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
 }
 
+TEST(BindCache, StoresWhatHangingChangedInTheMaskAndAnimatePrintsIt) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache_hung");
+  BoundCharacter bound = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "").bound;
+  EXPECT_EQ(bound.hung.pinned, 0);  // a given mask is used as it is
+  EXPECT_EQ(bound.hung.unnailed, 0);
+  bound.hung = HungPieces{2, 1};
+  save_bind(cache, "key", bound);
+  BoundCharacter loaded;
+  std::string reason;
+  ASSERT_TRUE(load_bind(cache, "key", loaded, &reason)) << reason;
+  EXPECT_EQ(loaded.hung.pinned, 2);
+  EXPECT_EQ(loaded.hung.unnailed, 1);
+  AnimateSummary summary;
+  EXPECT_EQ(describe(summary).find("made to hang"), std::string::npos);
+  summary.hung = loaded.hung;
+  EXPECT_NE(describe(summary).find("apparel mask made to hang from the body: 2 floating pieces pinned by their "
+                                   "lowest-probability vertices, 1 extra body island made apparel\n"),
+            std::string::npos)
+      << describe(summary);
+}
+
 TEST(RuntimeSession, ExplodedOutputNamesTheFrameAndTheStage) {
   const auto [f, bundle, c, cache] = bind_inputs("runtime_exploded");
   const BindResult bind = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "");
