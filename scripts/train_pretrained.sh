@@ -13,7 +13,7 @@
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (30000), SKINNING_STEPS (6000, also for each Table 4
-# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (40000) and APPAREL_STEPS
+# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000) and APPAREL_STEPS
 # (16000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
@@ -29,10 +29,12 @@
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
-# with normalised inputs and target and contact inputs (its nearest body vertex), noise on its input
-# history; first 40000 one-step steps, then from that network a curriculum of rollouts (5, then 20
+# with normalised inputs and target and contact inputs (its nearest body vertex), 1 mm of noise on its input
+# history; first 30000 one-step steps of 4 windows, then from that network a curriculum of rollouts (5, then 20
 # frames; a fifth of the windows rolled out from the rest pose) with up to 40 frames of free run on its
-# own predictions before them (pushforward); the per-vertex distance as the loss.
+# own predictions before them (pushforward); the per-vertex distance as the loss. The refiner weighs its
+# edge-length term 1 (--edge-weight 1) where the paper weighs it 100: at 100 it pulls the apparel towards its
+# rest edge lengths, which the simulated apparel does not keep, and costs PMD.
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 2 ]]; then
@@ -55,7 +57,8 @@ segmenter='{"encoder_widths":[32,64,128],"decoder_widths":[64,32]}'
 skinning='{"feature_widths":[32,32],"attention_widths":[16,16],"head_encoder_widths":[32,64,128],"head_decoder_widths":[64,32]}'
 apparel='{"edge_widths":[48,48,48],"decoder_widths":[48],"inertia":0.6}'
 refiner='{"hidden_widths":[32,32]}'
-base=(--data "${data[@]}" --seed "$seed" --lr-schedule cosine --batch 1 --threads 1 --validation-samples 16)
+unbatched=(--data "${data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 --validation-samples 16)
+base=("${unbatched[@]}" --batch 1)
 common=("${base[@]}" --out "$out" --lr 5e-4 --checkpoint-every 1000 --validate-every 1000)
 
 start_all=$SECONDS
@@ -112,15 +115,15 @@ if [[ $modules == *" apparel "* ]]; then
         "(train the skinning module first, or set APPAREL_SKINNING=none)" >&2
       return 1
     fi
-    run apparel_one_step apparel "${base[@]}" "${skinning_args[@]}" --out "$out/apparel_one_step" --lr 5e-4 \
-      --steps "${APPAREL_ONE_STEP_STEPS:-40000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
-      --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.003 --apparel-options "$apparel" &&
+    run apparel_one_step apparel "${unbatched[@]}" --batch 4 "${skinning_args[@]}" --out "$out/apparel_one_step" \
+      --lr 5e-4 --steps "${APPAREL_ONE_STEP_STEPS:-30000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
+      --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.001 --apparel-options "$apparel" &&
       run apparel apparel "${base[@]}" "${skinning_args[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
         --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
         --steps "${APPAREL_STEPS:-16000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
-        --noise 0.003 --rest-start 0.2 &&
+        --noise 0.001 --rest-start 0.2 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
-        --apparel "$out/apparel.ckpt" \
+        --apparel "$out/apparel.ckpt" --edge-weight 1 \
         --refiner-options "$refiner"
   }
   apparel_then_refiner > "$out/apparel.log" 2>&1 &
