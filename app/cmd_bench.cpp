@@ -59,6 +59,7 @@ struct BenchOptions {
   std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
   bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
   bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
+  bool reference_apparel = false;  // runtime suite: the global apparel form's network timed beside the model's
   std::vector<std::string> data;  // segmenter suite: dataset shards or folders
   std::string segmenter;          // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
   std::string split = "test";     // segmenter suite: the characters scored
@@ -193,6 +194,7 @@ void bench_runtime(const BenchOptions& o) {
     options.segmenter_mask = o.segmenter_mask;
     options.threads = o.runtime_threads;
     options.repeats = o.repeats;
+    options.reference_apparel = o.reference_apparel;
     const RuntimeFigures r = measure_runtime(bundle, options);
     const int N = r.vertices;
     std::printf(
@@ -209,6 +211,11 @@ void bench_runtime(const BenchOptions& o) {
           N, t.threads, t.threads > 1 ? "s" : "", t.median_ms, t.p95_ms, 1e3 / t.median_ms, t.model_ms, t.lbs_ms,
           t.apparel_ms, t.refiner_ms, t.penetration_ms, t.output_ms, 100.0 * t.inside_before, 100.0 * t.inside_after,
           100.0 * t.carried_share, t.resident_mb, r.peak_resident_mb);
+      if (std::isfinite(t.reference_apparel_ms))
+        std::printf(
+            "runtime   %6d vertices, %d thread%s: the global form's apparel network beside it %.2f ms: the "
+            "apparel network is %.2fx it\n",
+            N, t.threads, t.threads > 1 ? "s" : "", t.reference_apparel_ms, t.apparel_ms / t.reference_apparel_ms);
     }
     std::fflush(stdout);
   }
@@ -359,6 +366,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--segmenter-mask", options->segmenter_mask,
                   "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
                   "dressed character's");
+  bench->add_flag("--reference-apparel", options->reference_apparel,
+                  "Runtime suite: also time the global apparel form's network (the form the local one replaced, at "
+                  "its shipped widths) beside the model's, frame by frame, and print the ratio");
   bench->add_option("--data", options->data, "Segmenter suite: dataset shards (*.h5) or folders of them");
   bench->add_option("--segmenter", options->segmenter,
                     "Segmenter suite: the segmenter checkpoint scored (default: segmenter.ckpt of the model folder)");

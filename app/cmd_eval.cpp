@@ -69,12 +69,13 @@ std::vector<RuntimeFigures> eval_runtime(const ModelBundle& bundle, int repeats,
   RuntimeBenchmarkOptions dressed;
   dressed.vertices = 20000;
   dressed.repeats = repeats;
+  dressed.reference_apparel = true;
   if (!quiet) std::cerr << "eval: runtime on a dressed character (" << dressed.vertices << " vertices)" << std::endl;
   figures.push_back(measure_runtime(bundle, dressed, "20k-vertex dressed character, dressed mask"));
   figures.back().target_ms = 12;
-  // At most 1.5x the cost of the global apparel form this module replaced, which measured 3.4x the same
-  // run's LBS on one thread (README, Benchmarks: Runtime).
-  figures.back().target_apparel_lbs_ratio = 1.5 * 3.4;
+  // At most 1.5x the cost of the global apparel form this module replaced, timed beside it (issue 18). That
+  // form measured 3.4x LBS on one thread, a ratio LBS's 0.5-0.7 ms made too noisy to hold a target to.
+  figures.back().target_apparel_reference_ratio = 1.5;
   return figures;
 }
 

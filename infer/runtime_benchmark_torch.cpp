@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/body_generator.h"
@@ -63,6 +64,27 @@ double resident_mb() {
   return 0.0;
 }
 
+namespace {
+
+// `bundle` with its apparel module replaced by the global form as it was shipped before the local form replaced
+// it (models/pretrained/apparel.ckpt of that time: motion MLP 64 -> code 16, EdgeConv 32/32/64, decoder 32),
+// freshly initialised: the reference of the local form's cost.
+ModelBundle with_reference_apparel(const ModelBundle& bundle) {
+  ApparelDisplacementOptions o;
+  o.num_joints = bundle.num_joints();
+  o.motion_widths = {64};
+  o.motion_code = 16;
+  o.edge_widths = {32, 32, 64};
+  o.decoder_widths = {32};
+  ModelBundle reference = bundle;
+  reference.apparel = ApparelDisplacementNet(o);
+  reference.apparel->eval();
+  reference.apparel_dynamics = ApparelDynamicsNet(nullptr);
+  return reference;
+}
+
+}  // namespace
+
 RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmarkOptions& o, const std::string& label) {
   AMT_CHECK(!o.threads.empty() && o.repeats >= 1, "runtime benchmark: expected thread counts and at least one repeat");
   RuntimeFigures r;
@@ -102,6 +124,15 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
   const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
   r.apparel_vertices = count_ones(
       std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel()));
+  // The reference runs on the mask the model's bind chose, so that both networks see the same apparel.
+  const bool reference = o.reference_apparel && bundle.local_apparel();
+  const ModelBundle reference_bundle = reference ? with_reference_apparel(bundle) : ModelBundle{};
+  BindResult reference_bind;
+  if (reference) {
+    reference_bind = bind_cached(
+        reference_bundle, mesh, body.skeleton.rest_joints,
+        std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel()), "");
+  }
   const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
   const std::filesystem::path scratch =
       std::filesystem::path(o.scratch_dir.empty() ? std::filesystem::temp_directory_path().string() : o.scratch_dir) /
@@ -112,7 +143,13 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
     const Transforms first = forward_kinematics(body.skeleton, walk, 0);
     const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
     for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
-    std::vector<double> totals, model, pen, out, lbs, app, ref;
+    std::unique_ptr<RuntimeSession> reference_session;
+    if (reference) {
+      reference_session =
+          std::make_unique<RuntimeSession>(reference_bundle, reference_bind.bound, mesh.F, /*resolve=*/false);
+      for (int64_t k = 0; k < lead.size(0); ++k) reference_session->advance(lead[k]);
+    }
+    std::vector<double> totals, model, pen, out, lbs, app, ref, reference_app;
     Penetration before, after;
     int64_t carried = 0;
     {
@@ -132,6 +169,10 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
         carried += report.carried;
         // Stage split, as the pipeline stepper timed it within this very frame.
         lbs.push_back(times.stages.lbs), app.push_back(times.stages.apparel), ref.push_back(times.stages.refiner);
+        if (reference_session) {
+          MatrixX3f V_reference;
+          reference_app.push_back(reference_session->step(T, V_reference).stages.apparel);
+        }
       }
     }
     std::error_code ignored;
@@ -147,6 +188,7 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
     f.inside_before = before.share(), f.inside_after = after.share();
     f.carried_share = before.total > 0 ? double(carried) / double(before.total) : 0.0;
     f.resident_mb = resident_mb();
+    if (!reference_app.empty()) f.reference_apparel_ms = 1e3 * median_p95(reference_app).first;
     r.per_thread.push_back(f);
   }
   r.peak_resident_mb = peak_resident_mb();

@@ -26,6 +26,11 @@ struct RuntimeBenchmarkOptions {
   std::vector<int> threads = {1, 2};
   /// Timed frames per thread count (after a 10-frame lead-in).
   int repeats = 30;
+  /// Also time the apparel network of the global form, which the local form replaced (the widths it was
+  /// shipped with, fresh weights: a step's time does not depend on their values), on the same character
+  /// frame by frame beside the model's, so that the two are compared under the same load
+  /// (RuntimeThreadFigures::reference_apparel_ms). Ignored when the model's apparel module is the global form.
+  bool reference_apparel = false;
   /// Folder for the scratch GLB (removed afterwards).
   std::string scratch_dir;
 };

@@ -1020,7 +1020,8 @@ std::string evaluation_json(const EvaluationResult& result) {
                            {"inside_before", number(t.inside_before)},
                            {"inside_after", number(t.inside_after)},
                            {"carried_share", number(t.carried_share)},
-                           {"resident_mb", number(t.resident_mb)}});
+                           {"resident_mb", number(t.resident_mb)},
+                           {"reference_apparel_ms", number(t.reference_apparel_ms)}});
       runtime.push_back({{"label", r.label},
                          {"character", r.character},
                          {"mask", r.mask},
@@ -1035,7 +1036,8 @@ std::string evaluation_json(const EvaluationResult& result) {
                          {"target_ms", r.target_ms},
                          {"target_threads", r.target_threads},
                          {"target_bind_seconds", r.target_bind_seconds},
-                         {"target_apparel_lbs_ratio", r.target_apparel_lbs_ratio}});
+                         {"target_apparel_lbs_ratio", r.target_apparel_lbs_ratio},
+                         {"target_apparel_reference_ratio", r.target_apparel_reference_ratio}});
     }
     j["runtime"] = runtime;
   }

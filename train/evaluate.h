@@ -123,6 +123,9 @@ struct RuntimeThreadFigures {
   double inside_before = std::nan(""), inside_after = std::nan(""), carried_share = std::nan("");
   /// Resident memory after the timed frames (MB).
   double resident_mb = std::nan("");
+  /// The global apparel form's network (the form the local one replaced) timed beside the model's, frame by
+  /// frame on the same character (RuntimeBenchmarkOptions::reference_apparel); NaN when not measured.
+  double reference_apparel_ms = std::nan("");
 };
 
 /// A runtime measurement on one generated character (infer/runtime_benchmark.h, `amt bench --suite runtime`,
@@ -140,6 +143,9 @@ struct RuntimeFigures {
   int target_threads = 2;
   /// The apparel network's median on one thread in units of the same run's LBS at most this (0: none).
   double target_apparel_lbs_ratio = 0;
+  /// The apparel network's median on one thread in units of the global form's timed beside it at most this
+  /// (0: none).
+  double target_apparel_reference_ratio = 0;
 };
 
 /// Everything an evaluation measured.

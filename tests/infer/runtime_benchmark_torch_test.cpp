@@ -47,6 +47,7 @@ TEST(RuntimeBenchmark, MeasuresTheGeneratedCharacterOnEachThreadCount) {
     EXPECT_GE(t.p95_ms, t.median_ms);
     EXPECT_GT(t.apparel_ms, 0);
     EXPECT_GE(t.inside_before, t.inside_after);
+    EXPECT_TRUE(std::isnan(t.reference_apparel_ms));  // not asked for
   }
   EXPECT_TRUE(std::isfinite(r.bind_seconds) && r.bind_seconds > 0);
   EXPECT_TRUE(std::filesystem::is_empty(o.scratch_dir));  // the scratch GLB is removed
@@ -55,11 +56,19 @@ TEST(RuntimeBenchmark, MeasuresTheGeneratedCharacterOnEachThreadCount) {
   o.open_parts = true;
   o.segmenter_mask = true;
   o.threads = {1};
+  o.reference_apparel = true;
   const RuntimeFigures open = measure_runtime(bundle, o);
   EXPECT_EQ(open.mask, "the segmenter");
   EXPECT_NE(open.character.find(" open body parts"), std::string::npos) << open.character;
   EXPECT_GT(open.true_apparel_vertices, 0);
   ASSERT_EQ(open.per_thread.size(), 1u);
+  EXPECT_TRUE(std::isnan(open.per_thread[0].reference_apparel_ms));  // the model is the global form itself
+  // A local apparel module: the global form's network is timed beside it, on the same mask.
+  const ModelBundle local =
+      load_model_bundle(test::write_fresh_model(dir / "local", 7, canonical_joint_names(), /*local_apparel=*/true));
+  const RuntimeFigures beside = measure_runtime(local, o);
+  EXPECT_TRUE(std::isfinite(beside.per_thread[0].reference_apparel_ms) && beside.per_thread[0].reference_apparel_ms > 0)
+      << beside.per_thread[0].reference_apparel_ms;
 
   o.repeats = 0;
   try {
