@@ -122,16 +122,15 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
       bind_cached(bundle, mesh, body.skeleton.rest_joints, o.segmenter_mask ? std::vector<uint8_t>{} : mask, "");
   r.bind_seconds = bind.seconds;
   const at::Tensor bound_mask = bind.bound.apparel_mask.to(at::kByte).contiguous();
-  r.apparel_vertices = count_ones(
-      std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel()));
+  const std::vector<uint8_t> bound_mask_values(bound_mask.data_ptr<uint8_t>(),
+                                               bound_mask.data_ptr<uint8_t>() + bound_mask.numel());
+  r.apparel_vertices = count_ones(bound_mask_values);
   // The reference runs on the mask the model's bind chose, so that both networks see the same apparel.
   const bool reference = o.reference_apparel && bundle.local_apparel();
   const ModelBundle reference_bundle = reference ? with_reference_apparel(bundle) : ModelBundle{};
   BindResult reference_bind;
   if (reference) {
-    reference_bind = bind_cached(
-        reference_bundle, mesh, body.skeleton.rest_joints,
-        std::vector<uint8_t>(bound_mask.data_ptr<uint8_t>(), bound_mask.data_ptr<uint8_t>() + bound_mask.numel()), "");
+    reference_bind = bind_cached(reference_bundle, mesh, body.skeleton.rest_joints, bound_mask_values, "");
   }
   const Motion walk = retarget_motion(walk_motion(o.repeats + 1), canonical_skeleton(), body.skeleton);
   const std::filesystem::path scratch =
