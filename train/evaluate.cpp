@@ -1036,7 +1036,6 @@ std::string evaluation_json(const EvaluationResult& result) {
                          {"target_ms", r.target_ms},
                          {"target_threads", r.target_threads},
                          {"target_bind_seconds", r.target_bind_seconds},
-                         {"target_apparel_lbs_ratio", r.target_apparel_lbs_ratio},
                          {"target_apparel_reference_ratio", r.target_apparel_reference_ratio}});
     }
     j["runtime"] = runtime;

@@ -141,8 +141,6 @@ struct RuntimeFigures {
   /// Per-frame median at `target_threads` threads at most target_ms; bind at most target_bind_seconds.
   double target_ms = 0, target_bind_seconds = 0;
   int target_threads = 2;
-  /// The apparel network's median on one thread in units of the same run's LBS at most this (0: none).
-  double target_apparel_lbs_ratio = 0;
   /// The apparel network's median on one thread in units of the global form's timed beside it at most this
   /// (0: none).
   double target_apparel_reference_ratio = 0;

@@ -473,14 +473,6 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
            << " ms): " << (t.median_ms <= r.target_ms ? "met" : "NOT met") << "\n";
       }
       for (const RuntimeThreadFigures& t : r.per_thread) {
-        if (r.target_apparel_lbs_ratio <= 0 || t.threads != 1 || !(t.lbs_ms > 0)) continue;
-        any = true;
-        const double ratio = t.apparel_ms / t.lbs_ms;
-        md << "- runtime, " << r.label << ": apparel network / LBS on 1 thread = " << fixed(ratio, 2)
-           << " (target <= " << fixed(r.target_apparel_lbs_ratio, 2)
-           << "): " << (ratio <= r.target_apparel_lbs_ratio ? "met" : "NOT met") << "\n";
-      }
-      for (const RuntimeThreadFigures& t : r.per_thread) {
         if (r.target_apparel_reference_ratio <= 0 || t.threads != 1 || !(t.reference_apparel_ms > 0)) continue;
         any = true;
         const double ratio = t.apparel_ms / t.reference_apparel_ms;
