@@ -12,14 +12,15 @@
 #include <set>
 #include <sstream>
 
+#include "data_tools/builder/artist_style.h"
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/dataset_file.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
+#include "data_tools/formats/render.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/metrics.h"
 #include "data_tools/geometry/motion.h"
-#include "data_tools/formats/render.h"
 #include "data_tools/geometry/winding_number.h"
 
 namespace amt {
@@ -137,7 +138,8 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
           if (i >= piece.first && i < piece.end) owner = &piece;
         }
         AMT_CHECK(owner && owner->joint >= 0 && owner->joint < J && owner->chain_length > 0, record_file,
-                  ": apparel vertex ", i, " of ", name, ": expected a piece with an attachment joint and a chain length");
+                  ": apparel vertex ", i, " of ", name,
+                  ": expected a piece with an attachment joint and a chain length");
         apparel.push_back(i);
         joint_of.push_back(owner->joint);
         reach_of.push_back(owner->chain_length);
@@ -148,6 +150,8 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
 
       double character_lag = 0, character_share = 0;
       int character_share_frames = 0;
+      // Seams: the pairs coincident at rest, measured in every finite ground-truth frame.
+      SeparationAccumulator seams(coincident_pairs(character.mesh.V), MatrixX2i(0, 2));
       for (const std::string& clip : reader.clip_names()) {
         const ClipInfo info = reader.clip_info(clip);
         if (info.character != name) continue;
@@ -173,6 +177,7 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
             cq.non_finite += static_cast<int64_t>((!frame.array().isFinite()).count());
             continue;
           }
+          seams.add_frame(frame, frame);
           linear_blend_skinning(character.mesh.V, body_weights, skinning_matrices(character.skeleton, pose), rigid);
           const double pmd = point_mesh_distance_cm(rigid, frame, &character.apparel_mask, 1);
           if (std::isfinite(pmd)) clip_lag += pmd, ++lag_frames;
@@ -183,7 +188,8 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
             const double stretch = (p - pose[joint_of[a]].col(3)).norm() / reach_of[a];
             if (stretch > cq.max_stretch) {
               cq.max_stretch = stretch;
-              if (stretch > q.max_stretch) q.max_stretch = stretch, q.max_stretch_where = clip + " frame " + std::to_string(t);
+              if (stretch > q.max_stretch)
+                q.max_stretch = stretch, q.max_stretch_where = clip + " frame " + std::to_string(t);
             }
             if (t > 0) {
               const double jump = 100.0 * (frame.row(i) - previous.row(i)).norm();
@@ -215,6 +221,18 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
         cq.frames += T;
       }
       cq.lag_cm = cq.clips > 0 ? character_lag / cq.clips : 0.0;
+      const SeparationScores seam = seams.result();
+      cq.seam_pairs = seam.pairs;
+      if (seam.pair_frames > 0)
+        cq.seam_gap_p95_mm = 10 * seam.seam_gap_p95_cm, cq.seam_gap_max_mm = 10 * seam.seam_gap_max_cm;
+      if (cq.seam_gap_p95_mm > options.max_seam_gap_p95_mm || cq.seam_gap_max_mm > options.max_seam_gap_mm)
+        q.flagged.push_back(name + " (" + cq.shard +
+                            "): coincident vertices move apart in its own ground truth: 95th "
+                            "percentile " +
+                            fixed(cq.seam_gap_p95_mm, 2) + " mm, largest " + fixed(cq.seam_gap_max_mm, 2) +
+                            " mm over " + std::to_string(cq.seam_pairs) + " pairs (bounds " +
+                            fixed(options.max_seam_gap_p95_mm, 1) + " mm, " + fixed(options.max_seam_gap_mm, 1) +
+                            " mm)");
       cq.penetration_share = character_share_frames > 0 ? character_share / character_share_frames : 0.0;
       share_sum += character_share;
       q.penetration_frames += character_share_frames;
@@ -249,13 +267,21 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
                          fixed(o.max_jump_cm, 0) + " cm per frame at 30 fps)" +
                          (q.max_jump_where.empty() ? "" : ", at " + q.max_jump_where) +
                          "; relative to the rigidly skinned move up to " + fixed(q.max_relative_jump_cm, 1) +
-                         " cm, body joints up to " +
-                         fixed(q.max_joint_jump_cm, 1) + " cm per frame" +
+                         " cm, body joints up to " + fixed(q.max_joint_jump_cm, 1) + " cm per frame" +
                          (q.max_joint_jump_where.empty() ? "" : " (" + q.max_joint_jump_where + ")")});
   q.gates.push_back({"penetration", q.penetration_share < o.max_penetration_share,
                      fixed(100.0 * q.penetration_share, 2) + " % of apparel vertices inside the body per frame over " +
                          std::to_string(q.penetration_frames) + " frames (bound " +
                          fixed(100.0 * o.max_penetration_share, 0) + " %)"});
+  int64_t seam_pairs = 0;
+  int seam_characters = 0;
+  for (const CharacterQuality& c : q.characters) seam_pairs += c.seam_pairs, seam_characters += c.seam_pairs > 0;
+  q.gates.push_back({"seams hold", q.flagged.empty(),
+                     std::to_string(q.flagged.size()) + " of " + std::to_string(seam_characters) +
+                         " characters with coincident vertices (" + std::to_string(seam_pairs) +
+                         " pairs) move them apart in their ground truth (bounds: 95th percentile " +
+                         fixed(o.max_seam_gap_p95_mm, 1) + " mm, largest " + fixed(o.max_seam_gap_mm, 1) + " mm)" +
+                         (q.flagged.empty() ? "" : "; first: " + q.flagged.front())});
   return q;
 }
 
@@ -263,6 +289,7 @@ void print_gates(const DatasetQuality& q, std::ostream& out) {
   for (const QualityGate& gate : q.gates) {
     out << (gate.passed ? "PASS " : "FAIL ") << gate.name << ": " << gate.figure << "\n";
   }
+  for (const std::string& flag : q.flagged) out << "FLAG " << flag << "\n";
   std::set<std::string> kinds;
   double low = 1e9, high = 0;
   for (const CharacterQuality& c : q.characters) {
@@ -271,8 +298,8 @@ void print_gates(const DatasetQuality& q, std::ostream& out) {
     std::string kind;
     while (std::getline(list, kind, ',')) kinds.insert(kind.substr(kind.find_first_not_of(' ')));
   }
-  out << "INFO variety: " << q.characters.size() << " characters, heights " << fixed(low, 2) << " to "
-      << fixed(high, 2) << " m, " << kinds.size() << " apparel kinds\n";
+  out << "INFO variety: " << q.characters.size() << " characters, heights " << fixed(low, 2) << " to " << fixed(high, 2)
+      << " m, " << kinds.size() << " apparel kinds\n";
 }
 
 void write_quality_report(const DatasetQuality& q, const QualityOptions& options) {
@@ -284,16 +311,22 @@ void write_quality_report(const DatasetQuality& q, const QualityOptions& options
   for (const QualityGate& gate : q.gates) {
     md << "| " << gate.name << " | " << (gate.passed ? "PASS" : "FAIL") << " | " << gate.figure << " |\n";
   }
+  if (!q.flagged.empty()) {
+    md << "\n## Flagged characters\n\n";
+    for (const std::string& flag : q.flagged) md << "- " << flag << "\n";
+  }
   md << "\n## Characters\n\n![characters](characters.png)\n\n"
      << "| character | split | height (m) | head ratio | leg ratio | pose | apparel | vertices | apparel vertices | "
-        "apparel bodies | clips | lag (cm) | max stretch | max jump (cm) | penetration (%) |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "apparel bodies | clips | lag (cm) | max stretch | max jump (cm) | penetration (%) | seam pairs | seam gap "
+        "p95 / max (mm) |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const CharacterQuality& c : q.characters) {
     const std::string pose = c.arm_angle_deg < 10 ? "T-pose" : "A-pose " + fixed(c.arm_angle_deg, 0) + " deg";
     md << "| " << c.name << " | " << c.split << " | " << fixed(c.height, 2) << " | " << fixed(c.head_ratio, 3) << " | "
        << fixed(c.leg_ratio, 2) << " | " << pose << " | " << c.apparel << " | " << c.vertices << " | "
        << c.apparel_vertices << " | " << c.apparel_bodies << " | " << c.clips << " | " << fixed(c.lag_cm, 2) << " | "
        << fixed(c.max_stretch, 2) << " | " << fixed(c.max_jump_cm, 1) << " | " << fixed(100.0 * c.penetration_share, 2)
+       << " | " << c.seam_pairs << " | " << fixed(c.seam_gap_p95_mm, 2) << " / " << fixed(c.seam_gap_max_mm, 2)
        << " |\n";
   }
   write_file_atomically((fs::path(options.report_dir) / "report.md").string(), md.str());

@@ -13,7 +13,11 @@
 //     relative to the rigidly skinned vertex's move, |(v_t - v_t-1) - (r_t - r_t-1)|, and the body joints' largest
 //     move, which tell a fast motion from a simulation jump;
 //   - apparel vertices inside the posed body surface (the body's own closed mesh, generalized winding number):
-//     under 2 % per frame on average (measured every penetration_stride-th frame).
+//     under 2 % per frame on average (measured every penetration_stride-th frame);
+//   - seams hold: vertices that coincide at rest (a model's duplicated seam vertices, within 0.1 mm,
+//     data_tools/builder/artist_style.h coincident_pairs) stay together in the character's own ground truth: over
+//     every pair and frame, 95th percentile at most 0.5 mm and largest at most 5 mm; a character that breaks
+//     either is flagged with a one-line reason naming it.
 // Plus a variety table (proportions, pose, apparel kinds, vertex counts per character) and a picture grid of the
 // characters at rest (data_tools/formats/render.h).
 #include <iosfwd>
@@ -36,6 +40,8 @@ struct QualityOptions {
   double max_stretch = 1.5;
   double max_jump_cm = 100.0;
   double max_penetration_share = 0.02;
+  /// Seam gap bounds (mm): 95th percentile and largest distance apart of vertices coincident at rest.
+  double max_seam_gap_p95_mm = 0.5, max_seam_gap_mm = 5.0;
   /// Where progress lines go (null: nowhere).
   std::ostream* progress = nullptr;
 };
@@ -61,6 +67,10 @@ struct CharacterQuality {
   double penetration_share = 0;
   /// Non-finite values found.
   int64_t non_finite = 0;
+  /// Pairs of vertices coincident at rest, and their distance apart over the ground truth's frames (mm): 95th
+  /// percentile and largest (0 without pairs).
+  int64_t seam_pairs = 0;
+  double seam_gap_p95_mm = 0, seam_gap_max_mm = 0;
 };
 
 /// One gate's outcome.
@@ -90,6 +100,8 @@ struct DatasetQuality {
   std::string max_joint_jump_where;
   /// Mean share of apparel vertices inside the body over the measured frames.
   double penetration_share = 0;
+  /// One line per character whose coincident vertices move apart in its ground truth, naming it and the figures.
+  std::vector<std::string> flagged;
   std::vector<QualityGate> gates;
 
   /// Number of gates that failed.
@@ -107,7 +119,8 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
 /// (the characters at rest, rendered at one scale, apparel in a cloth colour), each atomically.
 void write_quality_report(const DatasetQuality& quality, const QualityOptions& options);
 
-/// One line per gate: "PASS apparel lag: 7.3 cm (bound 3 to 15 cm)", then one INFO line on variety.
+/// One line per gate: "PASS apparel lag: 7.3 cm (bound 3 to 15 cm)", one "FLAG " line per flagged character, then
+/// one INFO line on variety.
 void print_gates(const DatasetQuality& quality, std::ostream& out);
 
 }  // namespace amt

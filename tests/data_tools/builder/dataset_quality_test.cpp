@@ -1,6 +1,6 @@
-// Tests of data_tools/builder/dataset_quality.h on a hand-made dataset whose figures are computed by hand: a sphere body
-// skinned to the pelvis at rest, a 2x2-vertex apparel patch half a metre in front of the pelvis that the "simulation"
-// moves by known amounts.
+// Tests of data_tools/builder/dataset_quality.h on a hand-made dataset whose figures are computed by hand: a sphere
+// body skinned to the pelvis at rest, a 2x2-vertex apparel patch half a metre in front of the pelvis that the
+// "simulation" moves by known amounts.
 #include "data_tools/builder/dataset_quality.h"
 
 #include <gtest/gtest.h>
@@ -22,14 +22,22 @@ using test::error_of;
 namespace fs = std::filesystem;
 
 // Writes DIR/character-0000.h5 and its record. Clip "a" (3 frames): the patch moves 10 cm along +X per frame.
-// Clip "b" (2 frames): the patch jumps 35 cm into the body at frame 1.
-void write_hand_made_dataset(const fs::path& dir, Eigen::Vector3f* pelvis_out) {
+// Clip "b" (2 frames): the patch jumps 35 cm into the body at frame 1. With `seam_gap` > 0 the patch has a fifth
+// vertex, a seam copy of its vertex 3 (on a face of its own with vertices 0 and 1), that moves `seam_gap` metres
+// away from it along +Y at frame 2 of clip a.
+void write_hand_made_dataset(const fs::path& dir, Eigen::Vector3f* pelvis_out, float seam_gap = 0) {
   const Skeleton skeleton = canonical_skeleton();
   const Eigen::Vector3f P = skeleton.rest_joints.row(kPelvis).transpose();
   *pelvis_out = P;
   TriMesh body = uv_sphere(P, 0.3f, 16, 8);
   TriMesh patch = grid(2, 2, 0.01f);  // (0,0), (0.01,0), (0,0.01), (0.01,0.01) in XY
   for (int i = 0; i < 4; ++i) patch.V.row(i) += (P + Eigen::Vector3f(0, -0.01f, 0.5f)).transpose();
+  if (seam_gap > 0) {
+    patch.V.conservativeResize(5, 3);
+    patch.V.row(4) = patch.V.row(3);
+    patch.F.conservativeResize(3, 3);
+    patch.F.row(2) << 0, 1, 4;
+  }
   const TriMesh mesh = merge_meshes({body, patch});
   const int Nb = body.num_vertices(), N = mesh.num_vertices();
 
@@ -58,6 +66,7 @@ void write_hand_made_dataset(const fs::path& dir, Eigen::Vector3f* pelvis_out) {
           V.row(i) += offsets[t].transpose();
         }
       }
+      if (seam_gap > 0 && name.back() == 'a' && t == 2) V(N - 1, 1) += seam_gap;
       writer.append_frame(rest, V);
     }
     writer.end_clip();
@@ -103,12 +112,14 @@ TEST(DatasetQuality, HandMadeDatasetGivesHandComputedFigures) {
   EXPECT_NEAR(q.penetration_share, 0.2, 1e-9);
   EXPECT_EQ(q.non_finite, 0);
 
-  ASSERT_EQ(q.gates.size(), 5u);
+  ASSERT_EQ(q.gates.size(), 6u);
   EXPECT_TRUE(q.gates[0].passed);   // lag 13.75 cm in [3, 15]
   EXPECT_TRUE(q.gates[1].passed);   // no NaN
   EXPECT_TRUE(q.gates[2].passed);   // stretch 1.08 <= 1.5
   EXPECT_FALSE(q.gates[3].passed);  // jump 35 cm > 30
   EXPECT_FALSE(q.gates[4].passed);  // penetration 20 % >= 2 %
+  EXPECT_TRUE(q.gates[5].passed);   // seams: nothing moves apart
+  EXPECT_TRUE(q.flagged.empty());
   EXPECT_EQ(q.failed_gates(), 2);
 
   // Stride 2 measures frames 0 and 2 of clip a and frame 0 of clip b: no penetration.
@@ -122,7 +133,8 @@ TEST(DatasetQuality, HandMadeDatasetGivesHandComputedFigures) {
   std::stringstream text;
   text << report.rdbuf();
   EXPECT_NE(text.str().find("| no jump | FAIL |"), std::string::npos);
-  EXPECT_NE(text.str().find("| character-0000 | train | 1.70 | 0.130 | 0.62 | A-pose 30 deg | cape |"), std::string::npos)
+  EXPECT_NE(text.str().find("| character-0000 | train | 1.70 | 0.130 | 0.62 | A-pose 30 deg | cape |"),
+            std::string::npos)
       << text.str();
   std::ifstream png(dir / "quality" / "characters.png", std::ios::binary);
   char signature[8] = {};
@@ -133,6 +145,45 @@ TEST(DatasetQuality, HandMadeDatasetGivesHandComputedFigures) {
   EXPECT_NE(lines.str().find("FAIL no jump: largest frame-to-frame apparel vertex move 35.0 cm"), std::string::npos)
       << lines.str();
   EXPECT_NE(lines.str().find("PASS apparel lag"), std::string::npos);
+}
+
+// A seam copy that moves 8 mm away in one of the five frames: the largest gap is over 5 mm, the character is
+// flagged with one line naming it; 0.4 mm passes (with the sphere's seams, if any, the 95th percentile of the
+// pair-frames is at most that one gap).
+TEST(DatasetQuality, CoincidentVerticesMovingApartFlagTheCharacter) {
+  const fs::path dir = test::temp_dir("dataset_quality_seam");
+  Eigen::Vector3f P;
+  write_hand_made_dataset(dir, &P, 0.008f);
+  const DatasetQuality q = check_dataset(dir.string(), {});
+  ASSERT_EQ(q.characters.size(), 1u);
+  const CharacterQuality& c = q.characters[0];
+  EXPECT_GE(c.seam_pairs, 1);
+  EXPECT_NEAR(c.seam_gap_max_mm, 8.0, 1e-3);
+  // The one pair-frame of 8 mm is under 5 % of them when the sphere has seams of its own, else the 95th
+  // percentile is that 8 mm too.
+  EXPECT_LE(c.seam_gap_p95_mm, 8.0 + 1e-3);
+  ASSERT_EQ(q.flagged.size(), 1u);
+  EXPECT_EQ(q.flagged[0].rfind("character-0000 (character-0000.h5): coincident vertices move apart in its own ground "
+                               "truth: 95th percentile ",
+                               0),
+            0u)
+      << q.flagged[0];
+  EXPECT_NE(q.flagged[0].find("largest 8.00 mm over "), std::string::npos) << q.flagged[0];
+  EXPECT_EQ(q.flagged[0].find('\n'), std::string::npos);
+  ASSERT_EQ(q.gates.back().name, "seams hold");
+  EXPECT_FALSE(q.gates.back().passed);
+  std::ostringstream lines;
+  print_gates(q, lines);
+  EXPECT_NE(lines.str().find("FAIL seams hold: 1 of 1 characters"), std::string::npos) << lines.str();
+  EXPECT_NE(lines.str().find("FLAG character-0000 (character-0000.h5): coincident vertices move apart"),
+            std::string::npos);
+
+  const fs::path small = test::temp_dir("dataset_quality_seam_small");
+  write_hand_made_dataset(small, &P, 0.0004f);
+  const DatasetQuality ok = check_dataset(small.string(), {});
+  EXPECT_NEAR(ok.characters[0].seam_gap_max_mm, 0.4, 1e-3);
+  EXPECT_TRUE(ok.flagged.empty());
+  EXPECT_TRUE(ok.gates.back().passed);
 }
 
 TEST(DatasetQuality, FoldersWithoutShardsOrRecordsGiveErrors) {
