@@ -44,7 +44,10 @@ void print_summary(const EvaluationResult& result, const ReportFiles& files) {
       continue;
     std::cout << r.subset << ", " << r.protocol << ", " << method_label(r.method) << ": PMD " << r.scores.pmd
               << " cm, PMD_a " << r.scores.pmd_a << " cm, PMD_b " << r.scores.pmd_b << " cm, ELS " << r.scores.els
-              << ", penetration " << 100.0 * r.scores.penetration_share << " %\n";
+              << ", penetration " << 100.0 * r.scores.penetration_share << " %, tearing "
+              << 100.0 * r.separation.tearing << " %, seam gap p95 " << r.separation.seam_gap_p95_cm << " cm (worst "
+              << r.worst.seam_gap_p95_cm << " cm, " << (r.worst_seam_gap_p95.empty() ? "-" : r.worst_seam_gap_p95)
+              << "), ELS_a " << r.separation.apparel_els << "\n";
   }
   std::cout << "wrote " << files.markdown << ", " << files.json;
   for (const std::string& p : files.plots) std::cout << ", " << p;
@@ -84,16 +87,21 @@ void run(const EvalCommand& command) {
   check_report_folder(command.out);
   std::string viewer_dir;
   if (!command.viewer.empty()) {
-    AMT_CHECK(command.predictions.empty(), "--viewer: expected a model to run on the picked clips, found --predictions");
+    AMT_CHECK(command.predictions.empty(),
+              "--viewer: expected a model to run on the picked clips, found --predictions");
     const auto& methods = command.options.methods;
     AMT_CHECK(methods.empty() || std::find(methods.begin(), methods.end(), "full") != methods.end(),
               "--viewer: expected the method full among --methods (the clips are picked by its PMD_a)");
     viewer_dir = find_repository_folder("viewer");
-    AMT_CHECK(!viewer_dir.empty(), "--viewer: expected the repository's viewer/ folder above the amt program or in the "
+    AMT_CHECK(!viewer_dir.empty(),
+              "--viewer: expected the repository's viewer/ folder above the amt program or in the "
               "current folder, found none: run amt from a checkout");
     viewer_page_files(viewer_dir);
     check_viewer_folder(command.viewer);
   }
+  AMT_CHECK(!command.options.artist_style || command.predictions.empty(),
+            "--artist-style: expected a model to run on the remade characters, found --predictions (a file of "
+            "predictions is of the characters as built)");
   AMT_CHECK(!command.runtime || command.predictions.empty(),
             "--runtime: expected a model to time, found --predictions (a file of predictions has no runtime)");
   EvaluateOptions options = command.options;
@@ -109,9 +117,9 @@ void run(const EvalCommand& command) {
   if (!command.predictions.empty()) {
     result = evaluate_predictions(shards, command.predictions, options);
   } else {
-    const std::string model = !command.model.empty() ? command.model
-                                                     : repository_default("models/pretrained", "--model",
-                                                                          "FOLDER (trained model)");
+    const std::string model = !command.model.empty()
+                                  ? command.model
+                                  : repository_default("models/pretrained", "--model", "FOLDER (trained model)");
     const ModelBundle bundle = load_model_bundle(model);
     report.model_dir = model;
     result = evaluate_model(bundle, shards, options);
@@ -139,13 +147,15 @@ void run(const EvalCommand& command) {
 
 void add_eval_command(CLI::App& app) {
   auto* eval = app.add_subcommand(
-      "eval", "PMD / ELS / penetration tables (paper Tables 2-4) on held-out characters and clips: report.md, "
-              "metrics.json, PNG plots");
+      "eval",
+      "PMD / ELS / penetration tables (paper Tables 2-4) on held-out characters and clips: report.md, "
+      "metrics.json, PNG plots");
   auto command = std::make_shared<EvalCommand>();
   EvaluateOptions& o = command->options;
   eval->add_option("--data", command->data, "Dataset shards: *.h5 files or folders of them")->required();
-  eval->add_option("--model", command->model, "Model folder with segmenter/skinning/apparel/refiner.ckpt. " +
-                                                 repository_default_help("models/pretrained"))
+  eval->add_option(
+          "--model", command->model,
+          "Model folder with segmenter/skinning/apparel/refiner.ckpt. " + repository_default_help("models/pretrained"))
       ->capture_default_str();
   eval->add_option("--out", command->out, "Output folder for report.md, metrics.json and the plots")->required();
   eval->add_option("--protocol", command->protocol,
@@ -167,8 +177,9 @@ void add_eval_command(CLI::App& app) {
   eval->add_option("--viewer-frames", command->viewer_frames, "Frames per clip in the viewer folder (0: all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  eval->add_flag("--no-penetration", [command](int64_t) { command->options.penetration = false; },
-                 "Skip the penetration measure (a winding-number tree per frame)");
+  eval->add_flag(
+      "--no-penetration", [command](int64_t) { command->options.penetration = false; },
+      "Skip the penetration measure (a winding-number tree per frame)");
   eval->add_flag(
       "--runtime", command->runtime,
       "Also measure the per-frame runtime (as amt bench --suite runtime) on a real-mesh stand-in (14.5k "
@@ -177,17 +188,33 @@ void add_eval_command(CLI::App& app) {
   eval->add_option("--runtime-repeats", command->runtime_repeats, "Timed frames per runtime figure")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  eval->add_flag("--artist-style", o.artist_style,
+                 "Evaluate the held-out characters remade as artists build models (UV seams with coincident copies, "
+                 "hair strips, double-sided and layered panels; data_tools/builder/artist_style.h), ground truth "
+                 "remade with them, as the subset 'held-out characters, artist-style'");
+  o.artist_style_options.target_vertices = 20000;
+  eval->add_option("--artist-style-vertices", o.artist_style_options.target_vertices,
+                   "Vertices the artist-style remake is subdivided to (0: no subdivision; else >= 1000)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  eval->add_option("--artist-style-seed", o.artist_style_options.seed, "Seed of the artist-style remake")
+      ->capture_default_str();
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");
   add_threads_option(*eval);
   eval->callback([command] {
     std::string line = "amt eval --data";
     for (const std::string& d : command->data) line += " " + d;
-    if (command->predictions.empty() && !command->model.empty()) line += " --model " + command->model;
-    else line += " --predictions " + command->predictions;
+    if (command->predictions.empty() && !command->model.empty())
+      line += " --model " + command->model;
+    else
+      line += " --predictions " + command->predictions;
     line += " --out " + command->out + " --protocol " + command->protocol;
     if (command->options.max_clips > 0) line += " --max-clips " + std::to_string(command->options.max_clips);
     if (command->runtime) line += " --runtime";
+    if (command->options.artist_style)
+      line += " --artist-style --artist-style-vertices " +
+              std::to_string(command->options.artist_style_options.target_vertices);
     command->command_line = line;
     run(*command);
   });

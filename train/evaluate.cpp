@@ -16,12 +16,12 @@
 #include <optional>
 #include <tuple>
 
-#include "data_tools/garment/body_penetration.h"
-#include "data_tools/formats/dataset_file.h"
-#include "data_tools/garment/cloth_retarget.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/builder/garment_pairs.h"
 #include "data_tools/builder/segmenter_augmentation.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/garment/body_penetration.h"
+#include "data_tools/garment/cloth_retarget.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/metrics_torch.h"
@@ -126,7 +126,8 @@ struct EvalClip {
 // The held-out clips of the shards per subset. With max_clips > 0 a subset keeps at most that many,
 // taken round robin over its characters (every character's first clip, then every second clip, ...,
 // each character's clips in file order), so that a capped evaluation still covers every character.
-std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>& readers, int max_clips) {
+std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>& readers, int max_clips,
+                                     bool artist_style = false) {
   // subset -> characters -> (position in file order, clip)
   std::map<std::string, std::vector<std::vector<std::pair<size_t, EvalClip>>>> by_character;
   size_t position = 0;
@@ -139,7 +140,7 @@ std::vector<EvalClip> held_out_clips(std::vector<std::unique_ptr<DatasetReader>>
       ClipInfo info = readers[s]->clip_info(name);
       std::string subset;
       if (character_split.at(info.character) == "test")
-        subset = kHeldOutCharacters;
+        subset = artist_style ? kHeldOutArtistStyle : kHeldOutCharacters;
       else if (info.split == "test")
         subset = kHeldOutClips;
       else
@@ -189,10 +190,22 @@ struct CharacterCache {
   // The character remade of open parts (open_parts_example): the segmenter's IoU on it and the share of its bare
   // version called apparel. NaN when the character cannot be remade (not a procedural character's layout).
   double open_parts_iou = std::nan(""), bare_open_parts_share = std::nan("");
-  TriMesh mesh;           // the rest mesh and joints, for the bare body
+  TriMesh mesh;  // the rest mesh and joints, for the bare body
   MatrixX3f rest_joints;
-  Skeleton skeleton;      // and the skeleton and body weights, for the open-parts version
+  Skeleton skeleton;  // and the skeleton and body weights, for the open-parts version
   MatrixXfR body_weights;
+  // The artist-style remake the arrays above are of (EvaluateOptions::artist_style), whose map remakes the ground
+  // truth read from the dataset; empty for a character evaluated as built.
+  std::optional<ArtistStyleCharacter> remake;
+  MatrixX2i pairs;      // coincident_pairs of the rest mesh: the seam gap's pairs
+  MatrixX2i apparel_E;  // apparel_edges of E: tearing and apparel ELS
+  MeshConstruction construction;
+
+  // The ground truth of `count` frames of `clip` from `first`, (count * N, 3): as stored, or remade.
+  MatrixX3f ground_truth(const DatasetReader& reader, const std::string& clip, int first, int count) const {
+    const MatrixX3f stored = reader.read_vertices(clip, first, count);
+    return remake ? remake_frames(*remake, stored, reader.read_joint_transforms(clip, first, count)) : stored;
+  }
 };
 
 // Share of a character's largest connected part called apparel when the segmenter sees that part
@@ -216,6 +229,7 @@ double bare_body_apparel_share(const ModelBundle& bundle, const CharacterCache& 
 // The segmenter on character c remade as real models are built (open_parts_example: open, overlapping body parts,
 // duplicated seams, a hair cap), dressed and bare: what `amt bench --suite segmenter` measures, in the report.
 void score_open_parts(const ModelBundle& bundle, CharacterCache& c) {
+  if (c.remake) return;  // already remade as real models are built: no open-parts version, NaN in the report
   const SegmenterExample example{c.mesh, c.skeleton, c.body_weights, c.mask};
   std::optional<SegmenterExample> open, bare;
   try {
@@ -234,10 +248,14 @@ void score_open_parts(const ModelBundle& bundle, CharacterCache& c) {
   c.bare_open_parts_share = called(*bare).to(at::kDouble).mean().item<double>();
 }
 
+// Character `name` of `reader` for `subset`; remade artist-style with `artist_style` when the subset is
+// kHeldOutArtistStyle.
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
-                                               const std::string& subset, bool penetration) {
-  const CharacterData data = reader.read_character(name);
+                                               const std::string& subset, bool penetration,
+                                               const ArtistStyleOptions& artist_style = {}) {
   auto c = std::make_unique<CharacterCache>();
+  if (subset == kHeldOutArtistStyle) c->remake = artist_style_character(reader.read_character(name), artist_style);
+  const CharacterData data = c->remake ? c->remake->character : reader.read_character(name);
   c->name = name;
   c->subset = subset;
   const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
@@ -253,6 +271,9 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   c->skeleton = data.skeleton;
   c->body_weights = data.body_weights;
   c->num_apparel = static_cast<int>(std::count_if(c->mask.begin(), c->mask.end(), [](uint8_t a) { return a != 0; }));
+  c->pairs = coincident_pairs(data.mesh.V, data.mesh.F);
+  c->apparel_E = apparel_edges(c->E, c->mask);
+  c->construction = mesh_construction(data.mesh.V, data.mesh.F);
   if (penetration) {
     BodyPenetration body(data.mesh.V, data.mesh.F, c->mask);
     if (body.active()) c->body.emplace(std::move(body));
@@ -264,12 +285,13 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
 struct CharacterCaches {
   std::vector<std::unique_ptr<CharacterCache>> loaded;  // in the order first met
   std::map<std::pair<int, std::string>, CharacterCache*> index;
+  ArtistStyleOptions artist_style;  // how the characters of kHeldOutArtistStyle are remade
 
   // The character of `clip`, read from `reader` (the clip's shard) on first use.
   CharacterCache& of(const DatasetReader& reader, const EvalClip& clip, bool penetration) {
     CharacterCache*& c = index[{clip.shard, clip.info.character}];
     if (!c) {
-      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration));
+      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration, artist_style));
       c = loaded.back().get();
     }
     return *c;
@@ -303,11 +325,13 @@ void add_to_curve(Curve& curve, int64_t t, double pmd_a) {
 // Accumulators for every table row and per-character entry, and the rollout curves.
 struct Accumulators {
   std::map<Key, ScoreAccumulator> rows;
-  std::map<Key, ScoreAccumulator> characters;  // (character, method, protocol)
+  std::map<Key, ScoreAccumulator> characters;                     // (character, method, protocol)
   std::map<std::pair<std::string, std::string>, Curve> curves;    // (subset, method): rollout frames
   std::map<std::pair<std::string, std::string>, Curve> horizons;  // (subset, method): paper-window frames
   // (method, protocol, subset) -> sums over frames of mean |V - S| and mean |V_gt - S| over apparel.
   std::map<Key, std::pair<double, double>> amplitude;
+  // (method, protocol, subset, character) -> the measures of falling apart.
+  std::map<std::tuple<std::string, std::string, std::string, std::string>, SeparationAccumulator> separation;
   // The clip being scored (name, shard) and every scored clip's PMD_a (EvaluationResult::clip_scores).
   std::string clip;
   int shard = 0;
@@ -334,6 +358,8 @@ class ClipScorer {
       : acc_(acc), c_(c), method_(method), protocol_(protocol) {
     row_ = &acc.rows[{method, protocol, c.subset}];
     row_->begin_clip();
+    separation_ = &acc.separation.try_emplace({method, protocol, c.subset, c.name}, c.pairs, c.apparel_E).first->second;
+    separation_->begin_clip();
     amplitude_ = &acc.amplitude[{method, protocol, c.subset}];
     if (per_character) {
       character_ = &acc.characters[{c.name, method, protocol}];
@@ -342,6 +368,7 @@ class ClipScorer {
   }
   ~ClipScorer() {
     row_->end_clip();
+    separation_->end_clip();
     if (character_) character_->end_clip();
     acc_.clip_scores.push_back({c_.subset, acc_.clip, c_.name, method_, protocol_, acc_.shard,
                                 frames_ > 0 ? pmd_a_sum_ / frames_ : std::nan("")});
@@ -357,6 +384,7 @@ class ClipScorer {
     }
     const Penetration* pen = frame.penetration ? &*frame.penetration : nullptr;
     row_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
+    separation_->add_frame(frame.V, gt);
     if (character_) character_->add_frame(frame.V, gt, c_.mask, c_.E, pen);
     const double pmd_a = point_mesh_distance_cm(frame.V, gt, &c_.mask, 1);
     if (std::isfinite(pmd_a)) pmd_a_sum_ += pmd_a, ++frames_;
@@ -371,6 +399,7 @@ class ClipScorer {
   int frames_ = 0;
   ScoreAccumulator* row_ = nullptr;
   ScoreAccumulator* character_ = nullptr;
+  SeparationAccumulator* separation_ = nullptr;
   std::pair<double, double>* amplitude_ = nullptr;
 };
 
@@ -389,7 +418,47 @@ BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
   return o;
 }
 
-MatrixX3f frame_of(const MatrixX3f& all, int64_t t, int64_t N) { return all.middleRows(t * N, N); }
+MatrixX3f frame_of(const MatrixX3f& all, int64_t t, int64_t N) {
+  return all.middleRows(t * N, N);
+}
+
+// A row's measures of falling apart from its characters' (entries of acc.separation under the row's key): each
+// measure's mean over the characters that have it, and its worst character.
+void add_separation(MethodScores& row, const Accumulators& acc) {
+  struct Measure {
+    double SeparationScores::*value;
+    bool larger_is_worse;
+    std::string MethodScores::*worst_name;
+  };
+  const Measure measures[] = {{&SeparationScores::tearing, true, &MethodScores::worst_tearing},
+                              {&SeparationScores::seam_gap_p95_cm, true, &MethodScores::worst_seam_gap_p95},
+                              {&SeparationScores::seam_gap_max_cm, true, &MethodScores::worst_seam_gap_max},
+                              {&SeparationScores::apparel_els, false, &MethodScores::worst_apparel_els}};
+  std::vector<std::pair<std::string, SeparationScores>> characters;
+  for (auto it = acc.separation.lower_bound({row.method, row.protocol, row.subset, ""});
+       it != acc.separation.end() && std::get<0>(it->first) == row.method && std::get<1>(it->first) == row.protocol &&
+       std::get<2>(it->first) == row.subset;
+       ++it)
+    characters.emplace_back(std::get<3>(it->first), it->second.result());
+  for (const auto& [name, s] : characters) {
+    row.separation.pairs += s.pairs, row.separation.edge_frames += s.edge_frames;
+    row.separation.pair_frames += s.pair_frames;
+  }
+  for (const Measure& m : measures) {
+    double sum = 0;
+    int count = 0;
+    row.separation.*m.value = row.worst.*m.value = std::nan("");
+    for (const auto& [name, s] : characters) {
+      const double v = s.*m.value;
+      if (!std::isfinite(v)) continue;
+      sum += v, ++count;
+      const double worst = row.worst.*m.value;
+      if (!std::isfinite(worst) || (m.larger_is_worse ? v > worst : v < worst))
+        row.worst.*m.value = v, row.*m.worst_name = name;
+    }
+    if (count > 0) row.separation.*m.value = sum / count;
+  }
+}
 
 std::vector<MethodScores> collect_rows(const Accumulators& acc) {
   std::vector<MethodScores> rows;
@@ -399,6 +468,7 @@ std::vector<MethodScores> collect_rows(const Accumulators& acc) {
     // Below a micrometre of ground-truth lag per frame there is no dynamics to measure against.
     if (amplitude != acc.amplitude.end() && amplitude->second.second > 1e-6 * std::max(1, row.scores.frames))
       row.amplitude = amplitude->second.first / amplitude->second.second;
+    add_separation(row, acc);
     rows.push_back(std::move(row));
   }
   // Order rows by the method order of evaluation_methods(), then protocol, then subset.
@@ -408,7 +478,8 @@ std::vector<MethodScores> collect_rows(const Accumulators& acc) {
     return it == order.end() ? order.size() : static_cast<size_t>(it - order.begin());
   };
   std::stable_sort(rows.begin(), rows.end(), [&](const MethodScores& a, const MethodScores& b) {
-    return std::make_tuple(rank(a.method), a.protocol, a.subset) < std::make_tuple(rank(b.method), b.protocol, b.subset);
+    return std::make_tuple(rank(a.method), a.protocol, a.subset) <
+           std::make_tuple(rank(b.method), b.protocol, b.subset);
   });
   return rows;
 }
@@ -436,9 +507,11 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
       s.first.precision += cs.segmentation.precision, s.first.recall += cs.segmentation.recall;
       ++s.second;
       cs.bare_apparel_share = c->bare_apparel_share;
-      auto& b = bare[c->subset];
-      b.first += c->bare_apparel_share;
-      ++b.second;
+      if (std::isfinite(c->bare_apparel_share)) {  // NaN on an artist-style remake (no bare body to cut out)
+        auto& b = bare[c->subset];
+        b.first += c->bare_apparel_share;
+        ++b.second;
+      }
       cs.open_parts_iou = c->open_parts_iou;
       cs.bare_open_parts_share = c->bare_open_parts_share;
       if (std::isfinite(c->open_parts_iou)) {
@@ -449,6 +522,11 @@ void finish(EvaluationResult& result, const Accumulators& acc, std::vector<std::
     for (const auto& [key, a] : acc.characters) {
       if (std::get<0>(key) == c->name) cs.scores[std::get<1>(key)][std::get<2>(key)] = a.result();
     }
+    for (const auto& [key, a] : acc.separation)
+      if (std::get<3>(key) == c->name && std::get<2>(key) == c->subset)
+        cs.separation[std::get<0>(key)][std::get<1>(key)] = a.result();
+    cs.construction = c->construction;
+    cs.artist_style = c->remake.has_value();
     result.characters.push_back(std::move(cs));
   }
   for (auto& [subset, s] : seg) {
@@ -513,7 +591,8 @@ std::pair<double, int> fit_inertia(std::vector<std::unique_ptr<DatasetReader>>& 
         const at::Tensor W = float_tensor(data.body_weights.data(), {N, J});
         const at::Tensor mask =
             at::from_blob(const_cast<uint8_t*>(data.apparel_mask.data()), {N}, at::kByte).to(at::kBool);
-        const at::Tensor apparel_ids = at::nonzero(mask).flatten(), body_ids = at::nonzero(mask.logical_not()).flatten();
+        const at::Tensor apparel_ids = at::nonzero(mask).flatten(),
+                         body_ids = at::nonzero(mask.logical_not()).flatten();
         if (apparel_ids.size(0) == 0 || body_ids.size(0) == 0) continue;
         const at::Tensor faces =
             at::from_blob(const_cast<int32_t*>(data.mesh.F.data()), {data.mesh.F.rows(), 3}, at::kInt);
@@ -577,6 +656,7 @@ int score_cloth_retargeting(std::vector<std::unique_ptr<DatasetReader>>& readers
     if (pair == source_of.end()) continue;
     const DatasetReader& reader = *readers[clip.shard];
     CharacterCache& c = characters.of(reader, clip, options.penetration);
+    if (c.remake) continue;  // the pair's apparel connectivity is the characters' as built
     const auto retargeter = [&](bool resolve) -> ClothRetargeter& {
       auto& r = retargeters[{clip.shard, pair->second.source_character, pair->second.target_character, resolve}];
       if (!r) {
@@ -666,7 +746,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
                                 const EvaluateOptions& options) {
   const auto start = Clock::now();
   AMT_CHECK(options.paper || options.rollout, "eval: protocol: expected paper, rollout or both, found none");
-  AMT_CHECK(options.window > kHistory, "eval: window: expected more than ", kHistory, " frames, found ", options.window);
+  AMT_CHECK(options.window > kHistory, "eval: window: expected more than ", kHistory, " frames, found ",
+            options.window);
   EvaluationResult result;
   result.shards = shards;
   result.model_dir = bundle.dir;
@@ -676,11 +757,14 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   std::vector<MethodSpec> methods;
   const std::vector<std::string> all = evaluation_methods();
   for (const std::string& m : options.methods)
-    AMT_CHECK(std::find(all.begin(), all.end(), m) != all.end(), "eval: method: expected one of ", [&] {
-      std::string list;
-      for (const std::string& key : all) list += (list.empty() ? "" : ", ") + key;
-      return list;
-    }(), ", found '", m, "'");
+    AMT_CHECK(
+        std::find(all.begin(), all.end(), m) != all.end(), "eval: method: expected one of ",
+        [&] {
+          std::string list;
+          for (const std::string& key : all) list += (list.empty() ? "" : ", ") + key;
+          return list;
+        }(),
+        ", found '", m, "'");
   for (const MethodSpec& spec : method_specs()) {
     if (!options.methods.empty() &&
         std::find(options.methods.begin(), options.methods.end(), spec.key) == options.methods.end())
@@ -700,12 +784,13 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 
   auto readers = open_shards(shards);
   check_bundle_skeleton(bundle, readers.front()->joint_names(), shards.front());
-  const std::vector<EvalClip> clips = held_out_clips(readers, options.max_clips);
+  const std::vector<EvalClip> clips = held_out_clips(readers, options.max_clips, options.artist_style);
   AMT_CHECK(!clips.empty(), shards.front(), (shards.size() > 1 ? " (and the other shards)" : ""),
             ": no held-out clips (expected clips of test characters, or test clips of train characters)");
   const int64_t J = bundle.num_joints();
   double inertia = 0.0;
-  if (std::any_of(methods.begin(), methods.end(), [](const MethodSpec& m) { return m.source == ApparelSource::kInertial; })) {
+  if (std::any_of(methods.begin(), methods.end(),
+                  [](const MethodSpec& m) { return m.source == ApparelSource::kInertial; })) {
     std::tie(inertia, result.inertia_clips) = fit_inertia(readers, J, bundle.apparel_anchor());
     result.inertia = inertia;
     result.notes.push_back("inertial rule: inertia " + std::to_string(inertia) + ", least-squares fitted on " +
@@ -734,6 +819,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 
   Accumulators acc;
   CharacterCaches characters;
+  characters.artist_style = options.artist_style_options;
   int short_clips = 0;
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   progress.update(0);
@@ -746,7 +832,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     ++result.clips[clip.subset];
     const int64_t T = clip.info.num_frames, N = static_cast<int64_t>(c.mask.size());
     const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(clip.info.name, 0, T), T, J);
-    const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
+    const MatrixX3f gt_all = c.ground_truth(reader, clip.info.name, 0, static_cast<int>(T));
     const at::Tensor gt_tensor = float_tensor(gt_all.data(), {T, N, 3});
     std::vector<MatrixX3f> gt(static_cast<size_t>(T));  // gt[t] (N, 3)
     for (int64_t t = 0; t < T; ++t) gt[t] = frame_of(gt_all, t, N);
@@ -764,7 +850,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       const BoundCharacter& b = bound->second;
       if (m.bind == "predicted" && !c.segmentation) {
         c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
-        c.bare_apparel_share = bare_body_apparel_share(bundle, c);
+        if (!c.remake) c.bare_apparel_share = bare_body_apparel_share(bundle, c);
         score_open_parts(bundle, c);
       }
 
@@ -839,8 +925,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   if (short_clips > 0)
     result.notes.push_back(std::to_string(short_clips) + " clip(s) shorter than the " + std::to_string(options.window) +
                            "-frame window were left out of the paper protocol.");
-  const int retargeted =
-      score_cloth_retargeting(readers, clips, options, J, options.methods.empty() ? all : options.methods, acc, characters);
+  const int retargeted = score_cloth_retargeting(readers, clips, options, J,
+                                                 options.methods.empty() ? all : options.methods, acc, characters);
   if (retargeted > 0)
     result.notes.push_back("cloth_retarget: " + std::to_string(retargeted) +
                            " held-out clip(s) are the target of a garment pair (same apparel connectivity, same "
@@ -855,6 +941,9 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, const std::string& predictions,
                                       const EvaluateOptions& options) {
   const auto start = Clock::now();
+  AMT_CHECK(!options.artist_style, predictions,
+            ": artist style: expected a model to run on the remade characters, "
+            "found a predictions file (its vertices are the characters' as built)");
   std::error_code error;
   AMT_CHECK(fs::is_regular_file(predictions, error), predictions,
             ": no such predictions file (expected an amt-dataset file, e.g. from amt animate --out x.h5)");
@@ -903,8 +992,9 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     ClipScorer scorer(acc, c, "predictions", "file", true);
     Curve& curve = acc.curves[{c.subset, "predictions"}];
     for (int64_t t = 0; t < T; ++t)
-      add_to_curve(curve, t, scorer.add(predicted_frame(c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N),
-                                        to_matrix(skinned_all[t])));
+      add_to_curve(
+          curve, t,
+          scorer.add(predicted_frame(c, frame_of(pred_all, t, N)), frame_of(gt_all, t, N), to_matrix(skinned_all[t])));
     progress.update(static_cast<int>(k + 1));
   }
   finish(result, acc, characters.loaded);
@@ -928,8 +1018,17 @@ std::string evaluation_json(const EvaluationResult& result) {
                 {"frames", s.frames}};
   };
   const auto seg = [&](const SegmentationScores& s) {
-    return Json{{"iou", number(s.iou)}, {"f1", number(s.f1)}, {"precision", number(s.precision)},
-                {"recall", number(s.recall)}};
+    return Json{
+        {"iou", number(s.iou)}, {"f1", number(s.f1)}, {"precision", number(s.precision)}, {"recall", number(s.recall)}};
+  };
+  const auto separation = [&](const SeparationScores& s) {
+    return Json{{"tearing", number(s.tearing)},
+                {"seam_gap_p95_cm", number(s.seam_gap_p95_cm)},
+                {"seam_gap_max_cm", number(s.seam_gap_max_cm)},
+                {"apparel_els", number(s.apparel_els)},
+                {"coincident_pairs", s.pairs},
+                {"apparel_edge_frames", s.edge_frames},
+                {"pair_frames", s.pair_frames}};
   };
   const auto bare_share = [&](const std::string& subset) {
     const auto it = result.bare_apparel_share.find(subset);
@@ -946,7 +1045,20 @@ std::string evaluation_json(const EvaluationResult& result) {
                   {"window", result.options.window},
                   {"max_clips", result.options.max_clips},
                   {"penetration", result.options.penetration},
-                  {"lead_in_frames", kDefaultLeadInFrames}};
+                  {"lead_in_frames", kDefaultLeadInFrames},
+                  {"artist_style", result.options.artist_style}};
+  if (result.options.artist_style) {
+    const ArtistStyleOptions& a = result.options.artist_style_options;
+    j["artist_style"] = {{"subset", kHeldOutArtistStyle},
+                         {"seed", a.seed},
+                         {"target_vertices", a.target_vertices},
+                         {"island_faces", a.island_faces},
+                         {"strip_width_m", a.strip_width},
+                         {"panel_width_m", a.panel_width},
+                         {"reverse_offset_m", {a.back_offset_min, a.back_offset_max}},
+                         {"layer_share", a.layer_share},
+                         {"layer_offset_m", {a.layer_offset_min, a.layer_offset_max}}};
+  }
   j["seconds"] = result.seconds;
   j["clips"] = result.clips;
   Json rows = Json::array();
@@ -956,6 +1068,13 @@ std::string evaluation_json(const EvaluationResult& result) {
     row["protocol"] = r.protocol;
     row["subset"] = r.subset;
     row["dynamics_amplitude"] = number(r.amplitude);
+    Json falling = separation(r.separation);
+    const auto worst = [&](double v, const std::string& c) { return Json{{"value", number(v)}, {"character", c}}; };
+    falling["worst"] = {{"tearing", worst(r.worst.tearing, r.worst_tearing)},
+                        {"seam_gap_p95_cm", worst(r.worst.seam_gap_p95_cm, r.worst_seam_gap_p95)},
+                        {"seam_gap_max_cm", worst(r.worst.seam_gap_max_cm, r.worst_seam_gap_max)},
+                        {"apparel_els", worst(r.worst.apparel_els, r.worst_apparel_els)}};
+    row["falling_apart"] = falling;
     rows.push_back(row);
   }
   j["rows"] = rows;
@@ -972,15 +1091,28 @@ std::string evaluation_json(const EvaluationResult& result) {
   j["segmentation"] = segmentation;
   Json characters = Json::array();
   for (const CharacterScores& c : result.characters) {
-    Json cj{{"character", c.character}, {"subset", c.subset}, {"vertices", c.num_vertices},
-            {"apparel_vertices", c.num_apparel}, {"segmentation", seg(c.segmentation)},
-                {"bare_body_apparel_share", number(c.bare_apparel_share)},
-                {"open_parts_iou", number(c.open_parts_iou)},
-                {"bare_open_parts_apparel_share", number(c.bare_open_parts_share)}};
+    Json cj{{"character", c.character},
+            {"subset", c.subset},
+            {"vertices", c.num_vertices},
+            {"apparel_vertices", c.num_apparel},
+            {"segmentation", seg(c.segmentation)},
+            {"bare_body_apparel_share", number(c.bare_apparel_share)},
+            {"open_parts_iou", number(c.open_parts_iou)},
+            {"bare_open_parts_apparel_share", number(c.bare_open_parts_share)}};
     Json methods = Json::object();
     for (const auto& [method, protocols] : c.scores)
       for (const auto& [protocol, s] : protocols) methods[method][protocol] = scores(s);
     cj["scores"] = methods;
+    Json falling = Json::object();
+    for (const auto& [method, protocols] : c.separation)
+      for (const auto& [protocol, s] : protocols) falling[method][protocol] = separation(s);
+    cj["falling_apart"] = falling;
+    cj["artist_style"] = c.artist_style;
+    cj["construction"] = {{"vertices", c.construction.vertices},
+                          {"faces", c.construction.faces},
+                          {"parts", c.construction.parts},
+                          {"welded_parts", c.construction.welded_parts},
+                          {"coincident_share", number(c.construction.coincident_share)}};
     characters.push_back(cj);
   }
   j["characters"] = characters;
@@ -991,7 +1123,10 @@ std::string evaluation_json(const EvaluationResult& result) {
     Json at_frames = Json::object();
     for (int f : result.options.rollout_frames)
       if (f >= 1 && f <= static_cast<int>(c.pmd_a.size())) at_frames[std::to_string(f)] = number(c.pmd_a[f - 1]);
-    curves.push_back({{"subset", c.subset}, {"method", c.method}, {"pmd_a_cm", values}, {"clips", c.clips},
+    curves.push_back({{"subset", c.subset},
+                      {"method", c.method},
+                      {"pmd_a_cm", values},
+                      {"clips", c.clips},
                       {"pmd_a_cm_at_frame", at_frames}});
   }
   j["rollout_curves"] = curves;
@@ -1044,13 +1179,11 @@ std::string evaluation_json(const EvaluationResult& result) {
   return j.dump(2) + "\n";
 }
 
-
 // === Clips to look at
 
 std::vector<ViewerPick> viewer_picks(const EvaluationResult& result) {
-  const bool rollout = std::any_of(result.clip_scores.begin(), result.clip_scores.end(), [](const ClipScore& s) {
-    return s.method == "full" && s.protocol == kRollout;
-  });
+  const bool rollout = std::any_of(result.clip_scores.begin(), result.clip_scores.end(),
+                                   [](const ClipScore& s) { return s.method == "full" && s.protocol == kRollout; });
   const std::string protocol = rollout ? kRollout : kPaper;
   std::map<std::string, std::vector<ClipScore>> by_subset;
   for (const ClipScore& s : result.clip_scores)
@@ -1078,16 +1211,16 @@ ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, 
             ": expected one of the ", result.shards.size(), " evaluated shards");
   const DatasetReader reader(result.shards[size_t(s.shard)]);
   const ClipInfo info = reader.clip_info(s.clip);
-  const std::unique_ptr<CharacterCache> c = load_character(reader, info.character, s.subset, false);
-  const CharacterData data = reader.read_character(info.character);
+  const std::unique_ptr<CharacterCache> c =
+      load_character(reader, info.character, s.subset, false, result.options.artist_style_options);
   const int64_t T = max_frames > 0 ? std::min<int64_t>(max_frames, info.num_frames) : info.num_frames;
   const int64_t N = static_cast<int64_t>(c->mask.size()), J = bundle.num_joints();
   ViewedClip v;
-  v.F = data.mesh.F;
+  v.F = c->mesh.F;
   v.mask = c->mask;
   v.fps = info.fps;
   const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(s.clip, 0, int(T)), T, J);
-  const MatrixX3f gt_all = reader.read_vertices(s.clip, 0, static_cast<int>(T));
+  const MatrixX3f gt_all = c->ground_truth(reader, s.clip, 0, static_cast<int>(T));
   for (int64_t t = 0; t < T; ++t) v.ground_truth.push_back(frame_of(gt_all, t, N));
   c10::InferenceMode inference;
   const at::Tensor skinned = linear_blend_skinning(c->V, c->gt_weights, motion, c->joints).contiguous();

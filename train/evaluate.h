@@ -9,12 +9,19 @@
 //   "rollout"  the whole clip, apparel started from the rest pose with the motion blended in from the
 //              rest pose (motion_lead_in, kDefaultLeadInFrames), as a user runs it.
 // Two subsets: "held-out characters" (clips of characters whose split is test) and "held-out clips"
-// (clips whose split is test, of characters whose split is train).
+// (clips whose split is test, of characters whose split is train). With EvaluateOptions::artist_style the
+// held-out characters are remade as artists build models (data_tools/builder/artist_style.h) and their ground
+// truth with them; their subset is then "held-out characters, artist-style".
+// Beside PMD and ELS, what shows a prediction falling apart (data_tools/builder/artist_style.h,
+// SeparationScores): tearing of apparel edges, the gap opening between vertices that coincide at rest (a
+// seam's copies), and ELS over apparel edges; per character, and per table row as the mean over the subset's
+// characters with its worst character beside it.
 #include <cmath>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "data_tools/builder/artist_style.h"
 #include "data_tools/geometry/metrics.h"
 #include "train/pipeline.h"
 
@@ -62,6 +69,10 @@ struct EvaluateOptions {
   bool penetration = true;
   /// Print progress (clips done / total, rate, ETA) on stderr.
   bool progress = true;
+  /// Evaluate the held-out characters remade artist-style (artist_style_character with these options; every
+  /// method binds the remade mesh, the ground truth is remade by remake_frames) instead of as built.
+  bool artist_style = false;
+  ArtistStyleOptions artist_style_options;
 };
 
 // === Results
@@ -75,6 +86,10 @@ struct MethodScores {
   /// skinning baseline's apparel): 0 = glued to the body, 1 = as lively as the simulation. NaN
   /// without apparel.
   double amplitude = std::nan("");
+  /// Falling apart: each measure's mean over the subset's characters that have it (pairs and counts summed),
+  /// and its worst character (largest tearing and seam gaps, smallest apparel ELS) with the character's name.
+  SeparationScores separation, worst;
+  std::string worst_tearing, worst_seam_gap_p95, worst_seam_gap_max, worst_apparel_els;
 };
 
 /// Scores of one character (all its evaluated clips).
@@ -90,6 +105,11 @@ struct CharacterScores {
   double open_parts_iou = std::nan(""), bare_open_parts_share = std::nan("");
   /// method -> protocol -> scores, for the skinning baseline and the full model.
   std::map<std::string, std::map<std::string, MotionScores>> scores;
+  /// method -> protocol -> the measures of falling apart, for every method.
+  std::map<std::string, std::map<std::string, SeparationScores>> separation;
+  /// How the evaluated mesh is built (parts, coincident copies), and whether it is an artist-style remake.
+  MeshConstruction construction;
+  bool artist_style = false;
 };
 
 /// PMD_a (cm) of a method per rollout frame (or per predicted frame of a paper-protocol window),
@@ -189,6 +209,8 @@ struct EvaluationResult {
 /// Subset names.
 inline constexpr const char* kHeldOutCharacters = "held-out characters";
 inline constexpr const char* kHeldOutClips = "held-out clips";
+/// The held-out characters remade artist-style (EvaluateOptions::artist_style).
+inline constexpr const char* kHeldOutArtistStyle = "held-out characters, artist-style";
 
 // === Evaluation
 
@@ -202,7 +224,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 /// ground truth of the shards: every held-out clip of the shards that the predictions file has (same
 /// clip name, same character vertex count and frame count) is scored over all its frames as method
 /// "predictions", protocol "file". Throws amt::Error for a missing file, mismatched shapes or no clip
-/// in common.
+/// in common, or options.artist_style (a predictions file is of the characters as built).
 EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, const std::string& predictions,
                                       const EvaluateOptions& options);
 
@@ -234,7 +256,6 @@ struct ViewedClip {
 };
 
 /// Runs `bundle` on the picked clip of `result.shards` (its first `max_frames` frames; 0: all).
-ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, const ViewerPick& pick,
-                     int max_frames);
+ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, const ViewerPick& pick, int max_frames);
 
 }  // namespace amt

@@ -36,16 +36,20 @@ std::string fixed(double v, int digits) {
   return out.str();
 }
 
-std::string percent(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + " %" : "–"; }
+std::string percent(double v) {
+  return std::isfinite(v) ? fixed(100.0 * v, 1) + " %" : "–";
+}
 
 const char* protocol_text(const std::string& protocol) {
-  if (protocol == "paper") return "paper protocol (10-frame windows, 3 ground-truth apparel states, 7 predicted frames)";
+  if (protocol == "paper")
+    return "paper protocol (10-frame windows, 3 ground-truth apparel states, 7 predicted frames)";
   if (protocol == "rollout") return "rollout protocol (whole clip from the rest pose)";
   return "predictions file (every frame)";
 }
 
 std::string score_header() {
-  return "| Subset | Method | PMD (cm) | PMD_a (cm) | PMD_b (cm) | ELS | Amplitude | Penetration | Depth (cm) | Clips / "
+  return "| Subset | Method | PMD (cm) | PMD_a (cm) | PMD_b (cm) | ELS | Amplitude | Penetration | Depth (cm) | Clips "
+         "/ "
          "frames |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
 }
 
@@ -54,14 +58,14 @@ std::string score_row(const MethodScores& r) {
   std::ostringstream out;
   out << "| " << r.subset << " | " << method_label(r.method) << " | " << fixed(s.pmd, 2) << " | " << fixed(s.pmd_a, 2)
       << " | " << fixed(s.pmd_b, 2) << " | " << fixed(s.els, 3) << " | " << fixed(r.amplitude, 2) << " | "
-      << percent(s.penetration_share) << " | "
-      << fixed(s.penetration_depth_cm, 2) << " | " << s.clips << " / " << s.frames << " |\n";
+      << percent(s.penetration_share) << " | " << fixed(s.penetration_depth_cm, 2) << " | " << s.clips << " / "
+      << s.frames << " |\n";
   return out.str();
 }
 
 std::vector<std::string> subsets_of(const EvaluationResult& result) {
   std::vector<std::string> subsets;
-  for (const char* s : {kHeldOutCharacters, kHeldOutClips})
+  for (const char* s : {kHeldOutCharacters, kHeldOutArtistStyle, kHeldOutClips})
     if (result.clips.count(s)) subsets.push_back(s);
   return subsets;
 }
@@ -93,6 +97,59 @@ void write_table(std::ostringstream& md, const EvaluationResult& result, const s
     md << "**" << protocol_text(protocol) << "**\n\n" << score_header() << rows << "\n";
   }
   if (!any) md << "Not evaluated (no method of this table ran).\n\n";
+}
+
+// === Falling apart
+
+std::string worst_cell(double value, int digits, const std::string& character) {
+  return std::isfinite(value) ? fixed(value, digits) + " (" + character + ")" : std::string("–");
+}
+
+// Tearing, seam gap and apparel ELS per row (mean over characters and the worst character), per character, and
+// how the evaluated meshes are built.
+void write_falling_apart(std::ostringstream& md, const EvaluationResult& result) {
+  if (result.rows.empty()) return;
+  md << "## Falling apart\n\nTearing: share of apparel edge-frames (edges with an apparel vertex) whose predicted "
+        "length is off the ground truth's by more than 50 %. Seam gap: over the pairs of vertices that coincide at "
+        "rest (within 0.1 mm: a seam's duplicated vertices), their distance apart in the prediction, 95th percentile "
+        "and largest over pairs and frames, cm. ELS_a: ELS over apparel edges. Each is the mean over the subset's "
+        "characters, with the worst character beside it.\n\n"
+        "| Subset | Protocol | Method | Tearing | worst | Seam gap p95 (cm) | worst | Seam gap max (cm), worst | "
+        "ELS_a | worst | ELS |\n|---|---|---|---:|---|---:|---|---|---:|---|---:|\n";
+  for (const std::string& subset : subsets_of(result))
+    for (const std::string& protocol : protocols_of(result))
+      for (const MethodScores& r : result.rows) {
+        if (r.subset != subset || r.protocol != protocol) continue;
+        md << "| " << subset << " | " << protocol << " | " << method_label(r.method) << " | "
+           << percent(r.separation.tearing) << " | "
+           << (std::isfinite(r.worst.tearing) ? percent(r.worst.tearing) + " (" + r.worst_tearing + ")"
+                                              : std::string("–"))
+           << " | " << fixed(r.separation.seam_gap_p95_cm, 3) << " | "
+           << worst_cell(r.worst.seam_gap_p95_cm, 3, r.worst_seam_gap_p95) << " | "
+           << worst_cell(r.worst.seam_gap_max_cm, 3, r.worst_seam_gap_max) << " | "
+           << fixed(r.separation.apparel_els, 3) << " | " << worst_cell(r.worst.apparel_els, 3, r.worst_apparel_els)
+           << " | " << fixed(r.scores.els, 3) << " |\n";
+      }
+  md << "\n";
+  if (result.characters.empty()) return;
+  md << "### Per character\n\nHow each evaluated mesh is built (connected parts, parts once coincident vertices are "
+        "welded, share of vertices with a coincident copy) and, for the skinning baseline and the "
+     << (result.predictions.empty() ? "full model" : "predictions") << ", its measures of falling apart.\n\n"
+     << "| Character | Subset | Vertices | Parts | Welded parts | Coincident | Protocol | Method | Tearing | Seam gap "
+        "p95 (cm) | Seam gap max (cm) | ELS_a |\n|---|---|---:|---:|---:|---:|---|---|---:|---:|---:|---:|\n";
+  for (const CharacterScores& c : result.characters)
+    for (const std::string& method :
+         {std::string("skinning_baseline"), std::string("full"), std::string("predictions")}) {
+      const auto m = c.separation.find(method);
+      if (m == c.separation.end()) continue;
+      for (const auto& [protocol, s] : m->second)
+        md << "| " << c.character << " | " << c.subset << " | " << c.construction.vertices << " | "
+           << c.construction.parts << " | " << c.construction.welded_parts << " | "
+           << percent(c.construction.coincident_share) << " | " << protocol << " | " << method_label(method) << " | "
+           << percent(s.tearing) << " | " << fixed(s.seam_gap_p95_cm, 3) << " | " << fixed(s.seam_gap_max_cm, 3)
+           << " | " << fixed(s.apparel_els, 3) << " |\n";
+    }
+  md << "\n";
 }
 
 // === CSV
@@ -297,7 +354,20 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
   md << "Metrics (DESIGN.md section 5): PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "
         "averaged over vertices, then frames, then clips; ELS = mean of 1 - | |e_pred| / |e_gt| - 1 | over edges "
         "(1 is perfect); penetration = share of ground-truth apparel vertices inside the predicted body surface "
-        "(winding number) and their mean depth.\n\n";
+        "(winding number) and their mean depth. Falling apart (below): tearing, seam gap and ELS over apparel "
+        "edges.\n\n";
+  if (result.options.artist_style) {
+    const ArtistStyleOptions& a = result.options.artist_style_options;
+    md << "Subset **" << kHeldOutArtistStyle << "**: the held-out characters remade as artists build models "
+       << "(`data_tools/builder/artist_style.h`: open body parts, UV islands of about " << a.island_faces
+       << " faces with coincident seam copies, hair cut into strips, double-sided strips and panels, layered "
+          "panels; "
+       << (a.target_vertices > 0 ? "subdivided to about " + std::to_string(a.target_vertices) + " vertices"
+                                 : std::string("no subdivision"))
+       << ", seed " << a.seed
+       << ") with their ground truth remade by the same map; every method binds the remade "
+          "mesh.\n\n";
+  }
 
   // Segmentation.
   if (!result.segmentation.empty()) {
@@ -426,6 +496,8 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
     md << "\n";
   }
 
+  write_falling_apart(md, result);
+
   // Runtime on generated characters (amt eval --runtime).
   if (!result.runtime.empty()) {
     md << "## Runtime\n\nThe whole per-frame step of `amt animate` (the pipeline, penetration resolution, GLB "
@@ -524,12 +596,13 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
         if (c.method != "full" || c.subset != subset || c.pmd_a.size() < 300 || c.clips[299] == 0) continue;
         check(subset + ": full PMD_a at rollout frame 300 / frame 10", c.pmd_a[299] / c.pmd_a[9], 1.5, true);
       }
-      if (const MethodScores* r = result.find("full", "paper", subset)) check(subset + ": full ELS", r->scores.els, 0.94, false);
+      if (const MethodScores* r = result.find("full", "paper", subset))
+        check(subset + ": full ELS", r->scores.els, 0.94, false);
       const auto seg = result.segmentation.find(subset);
       if (seg != result.segmentation.end()) {
         any = true;
-        md << "- " << subset << ": segmentation IoU = " << fixed(seg->second.iou, 3) << " (target >= 0.9): "
-           << (seg->second.iou >= 0.9 ? "met" : "NOT met") << "\n";
+        md << "- " << subset << ": segmentation IoU = " << fixed(seg->second.iou, 3)
+           << " (target >= 0.9): " << (seg->second.iou >= 0.9 ? "met" : "NOT met") << "\n";
         const auto bare = result.bare_apparel_share.find(subset);
         if (bare != result.bare_apparel_share.end() && std::isfinite(bare->second))
           md << "- " << subset << ": bare body called apparel = " << fixed(100 * bare->second, 1)
@@ -547,18 +620,21 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
       if (pmd.size() == order.size()) {
         any = true;
         const bool holds = pmd[0] >= pmd[1] && pmd[1] >= pmd[2] && pmd[2] >= pmd[3];
-        md << "- " << subset << ": Table 3 ordering of PMD (body only >= body + apparel >= full >= full + GT mask): "
-           << fixed(pmd[0], 2) << ", " << fixed(pmd[1], 2) << ", " << fixed(pmd[2], 2) << ", " << fixed(pmd[3], 2)
-           << ": " << (holds ? "holds" : "does NOT hold") << "\n";
+        md << "- " << subset
+           << ": Table 3 ordering of PMD (body only >= body + apparel >= full >= full + GT mask): " << fixed(pmd[0], 2)
+           << ", " << fixed(pmd[1], 2) << ", " << fixed(pmd[2], 2) << ", " << fixed(pmd[3], 2) << ": "
+           << (holds ? "holds" : "does NOT hold") << "\n";
       }
       const MethodScores* attention = result.find("full_gt_mask", "paper", subset);
       const MethodScores* no_g = result.find("no_geodesic", "paper", subset);
       const MethodScores* sorted = result.find("sort_by_geodesic", "paper", subset);
       if (attention && no_g && sorted) {
         any = true;
-        const bool holds = attention->scores.pmd_b <= no_g->scores.pmd_b && attention->scores.pmd_b <= sorted->scores.pmd_b;
-        md << "- " << subset << ": Table 4 ordering of PMD_b (G + attention best): " << fixed(attention->scores.pmd_b, 2)
-           << " vs w/o G " << fixed(no_g->scores.pmd_b, 2) << ", sort by G " << fixed(sorted->scores.pmd_b, 2) << ": "
+        const bool holds =
+            attention->scores.pmd_b <= no_g->scores.pmd_b && attention->scores.pmd_b <= sorted->scores.pmd_b;
+        md << "- " << subset
+           << ": Table 4 ordering of PMD_b (G + attention best): " << fixed(attention->scores.pmd_b, 2) << " vs w/o G "
+           << fixed(no_g->scores.pmd_b, 2) << ", sort by G " << fixed(sorted->scores.pmd_b, 2) << ": "
            << (holds ? "holds" : "does NOT hold") << "\n";
       }
     }
@@ -585,8 +661,9 @@ void check_report_folder(const std::string& dir) {
   std::error_code error;
   const fs::file_status status = fs::symlink_status(dir, error);
   if (!fs::exists(status)) return;
-  AMT_CHECK(fs::is_directory(status), dir, ": --out: expected a folder for the report (absent, empty, or written by amt ",
-            "eval), found ", describe_file_type(status.type()));
+  AMT_CHECK(fs::is_directory(status), dir,
+            ": --out: expected a folder for the report (absent, empty, or written by amt ", "eval), found ",
+            describe_file_type(status.type()));
   if (fs::is_empty(dir, error) && !error) return;
   const fs::path metrics = fs::path(dir) / "metrics.json";
   std::string format;
@@ -607,8 +684,8 @@ ReportFiles write_report(const EvaluationResult& result, const ReportOptions& op
   check_report_folder(options.out_dir);
   std::error_code error;
   fs::create_directories(options.out_dir, error);
-  AMT_CHECK(fs::is_directory(options.out_dir, error), options.out_dir,
-            ": cannot create the output folder (", error.message(), ")");
+  AMT_CHECK(fs::is_directory(options.out_dir, error), options.out_dir, ": cannot create the output folder (",
+            error.message(), ")");
   ReportFiles files;
   // metrics.json first: it marks the folder as amt's, so a run interrupted while drawing the plots is
   // replaced by the next run instead of refused.

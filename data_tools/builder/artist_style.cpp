@@ -544,11 +544,26 @@ MeshConstruction mesh_construction(const MatrixX3f& V, const MatrixX3i& F) {
 
 // === Measures of falling apart
 
-MatrixX2i coincident_pairs(const MatrixX3f& V, float tolerance) {
+MatrixX2i coincident_pairs(const MatrixX3f& V, const MatrixX3i& F, float tolerance) {
   const std::vector<int32_t> weld = weld_vertices(V, tolerance);
+  // Vertices on an open boundary: an undirected edge of exactly one face.
+  std::unordered_map<int64_t, int> uses;
+  const int64_t N = V.rows();
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ++uses[edge_key(F(f, k), F(f, (k + 1) % 3), N)];
+  std::vector<uint8_t> boundary(size_t(N), 0);
+  for (const auto& [key, count] : uses)
+    if (count == 1) boundary[size_t(key / N)] = boundary[size_t(key % N)] = 1;
+  std::vector<int32_t> first(size_t(N), -1);  // per weld group: its smallest boundary vertex
   std::vector<Eigen::Vector2i> pairs;
-  for (int32_t i = 0; i < int32_t(weld.size()); ++i)
-    if (weld[size_t(i)] != i) pairs.emplace_back(weld[size_t(i)], i);
+  for (int32_t i = 0; i < int32_t(N); ++i) {
+    if (!boundary[size_t(i)]) continue;
+    int32_t& root = first[size_t(weld[size_t(i)])];
+    if (root < 0)
+      root = i;
+    else
+      pairs.emplace_back(root, i);
+  }
   MatrixX2i out(Eigen::Index(pairs.size()), 2);
   for (size_t k = 0; k < pairs.size(); ++k) out.row(Eigen::Index(k)) = pairs[k].transpose();
   return out;
@@ -599,7 +614,8 @@ void SeparationAccumulator::add_frame(const MatrixX3f& pred, const MatrixX3f& gt
   edge_frames_ += counted;
   if (counted > 0) frame_els_sum_ += els / counted, ++frame_els_count_;
   for (Eigen::Index p = 0; p < pairs_.rows(); ++p) {
-    double cm = 100.0 * (pred.row(pairs_(p, 0)) - pred.row(pairs_(p, 1))).norm();
+    double cm = 100.0 * std::max(0.0f, (pred.row(pairs_(p, 0)) - pred.row(pairs_(p, 1))).norm() -
+                                           (gt.row(pairs_(p, 0)) - gt.row(pairs_(p, 1))).norm());
     if (!std::isfinite(cm)) cm = std::numeric_limits<double>::infinity();  // a NaN prediction is torn apart
     const int bin = gap_bin(cm);
     ++histogram_[size_t(bin)];

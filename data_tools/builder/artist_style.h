@@ -137,10 +137,12 @@ MeshConstruction mesh_construction(const MatrixX3f& V, const MatrixX3i& F);
 
 // === Measures of falling apart
 
-/// The pairs of vertices of V (#V, 3) within `tolerance` metres at rest (found by weld_vertices, so chains
-/// within the tolerance count): each vertex with a coincident copy paired with the smallest index of its group,
-/// (P, 2) rows (smallest, other) in ascending order of `other`. A group of k copies gives k - 1 pairs.
-MatrixX2i coincident_pairs(const MatrixX3f& V, float tolerance = kCoincidentTolerance);
+/// The seams of (V (#V, 3), F): the pairs of vertices within `tolerance` metres at rest (found by weld_vertices, so
+/// chains within the tolerance count) that both lie on an open boundary of F (an edge of one face), as a seam's
+/// duplicated vertices do; two vertices of a closed surface that merely touch (a generated body's legs at the
+/// crotch) are no seam. Each such vertex is paired with the smallest index of its group: (P, 2) rows (smallest,
+/// other) in ascending order of `other`; a group of k copies gives k - 1 pairs.
+MatrixX2i coincident_pairs(const MatrixX3f& V, const MatrixX3i& F, float tolerance = kCoincidentTolerance);
 
 /// The edges E (#E, 2) with an apparel vertex (mask 1) at either end, in E's order.
 MatrixX2i apparel_edges(const MatrixX2i& E, const std::vector<uint8_t>& apparel_mask);
@@ -149,8 +151,10 @@ MatrixX2i apparel_edges(const MatrixX2i& E, const std::vector<uint8_t>& apparel_
 ///   tearing          share of apparel edge-frames whose predicted length is off the ground truth's by more
 ///                    than 50 % (| |e_pred| / |e_gt| - 1 | > 0.5); NaN without apparel edges
 ///   seam_gap_p95_cm, seam_gap_max_cm  over every frame of every pair of vertices coincident at rest, their
-///                    distance apart in the prediction (cm): the 95th percentile and the largest; NaN without
-///                    pairs
+///                    distance apart in the prediction beyond their distance apart in the ground truth (cm; 0 on a
+///                    seam the ground truth keeps closed, so it is their distance apart; a source's touching
+///                    points that the ground truth parts do not count): the 95th percentile and the largest; NaN
+///                    without pairs
 ///   apparel_els      ELS over apparel edges only: per frame the mean over them of
 ///                    1 - | |e_pred| / |e_gt| - 1 |, averaged over frames, then clips; NaN without apparel edges
 ///   pairs            coincident pairs; edge_frames, pair_frames: the counts measured
@@ -167,7 +171,8 @@ class SeparationAccumulator {
   /// pairs (P, 2) coincident_pairs of the rest mesh; edges (#E_a, 2) its apparel_edges.
   SeparationAccumulator(MatrixX2i pairs, MatrixX2i edges);
   void begin_clip();
-  /// pred, gt (#V, 3) metres.
+  /// pred, gt (#V, 3) metres. A ground truth's own seam gaps: add_frame(gt, rest) (the rest's pairs are
+  /// within kCoincidentTolerance).
   void add_frame(const MatrixX3f& pred, const MatrixX3f& gt);
   void end_clip();
   SeparationScores result() const;

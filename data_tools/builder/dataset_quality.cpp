@@ -151,7 +151,7 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
       double character_lag = 0, character_share = 0;
       int character_share_frames = 0;
       // Seams: the pairs coincident at rest, measured in every finite ground-truth frame.
-      SeparationAccumulator seams(coincident_pairs(character.mesh.V), MatrixX2i(0, 2));
+      SeparationAccumulator seams(coincident_pairs(character.mesh.V, character.mesh.F), MatrixX2i(0, 2));
       for (const std::string& clip : reader.clip_names()) {
         const ClipInfo info = reader.clip_info(clip);
         if (info.character != name) continue;
@@ -177,7 +177,7 @@ DatasetQuality check_dataset(const std::string& dir, const QualityOptions& optio
             cq.non_finite += static_cast<int64_t>((!frame.array().isFinite()).count());
             continue;
           }
-          seams.add_frame(frame, frame);
+          seams.add_frame(frame, character.mesh.V);  // the gaps opened since rest
           linear_blend_skinning(character.mesh.V, body_weights, skinning_matrices(character.skeleton, pose), rigid);
           const double pmd = point_mesh_distance_cm(rigid, frame, &character.apparel_mask, 1);
           if (std::isfinite(pmd)) clip_lag += pmd, ++lag_frames;

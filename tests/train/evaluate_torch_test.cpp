@@ -13,16 +13,18 @@
 #include <sstream>
 #include <string>
 
-#include "data_tools/formats/dataset_file.h"
+#include "data_tools/builder/artist_style.h"
+#include "data_tools/builder/dataset_builder.h"
 #include "data_tools/builder/example_dataset.h"
 #include "data_tools/builder/segmenter_augmentation.h"
+#include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/skeleton.h"
 #include "fresh_model.h"
-#include "tests/data_tools/builder/tiny_build.h"
 #include "micro_dataset.h"
+#include "tests/data_tools/builder/tiny_build.h"
 #include "train/evaluation_viewer.h"
 #include "train/module_options.h"
 #include "train/pipeline.h"
@@ -145,7 +147,8 @@ TEST(EvaluationViewer, PicksWorstMedianAndBestAndWritesTheirThreeSequences) {
   // The clip's mean PMD_a is the subset row's when the subset has one clip.
   EXPECT_NEAR(picks[3].score.pmd_a, result.find("full", "rollout", kHeldOutClips)->scores.pmd_a, 1e-4);
 
-  const std::string viewer_dir = (std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path() / "viewer").string();
+  const std::string viewer_dir =
+      (std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path() / "viewer").string();
   const std::string out = dir + "/viewer";
   const EvaluationViewer written = write_evaluation_viewer(bundle, result, out, viewer_dir, 6);
   EXPECT_EQ(written.clips, 4);
@@ -168,8 +171,9 @@ TEST(EvaluationViewer, PicksWorstMedianAndBestAndWritesTheirThreeSequences) {
   // A folder of the user's is refused.
   std::filesystem::create_directories(dir + "/mine");
   std::ofstream(dir + "/mine/notes.txt") << "x";
-  EXPECT_NE(test::error_of([&] { write_evaluation_viewer(bundle, result, dir + "/mine", viewer_dir, 6); })
-                .find("expected an empty folder or a viewer folder amt wrote"),
+  EXPECT_NE(test::error_of([&] {
+              write_evaluation_viewer(bundle, result, dir + "/mine", viewer_dir, 6);
+            }).find("expected an empty folder or a viewer folder amt wrote"),
             std::string::npos);
 }
 
@@ -267,8 +271,9 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
     EXPECT_NEAR(r->scores.pmd_b, 0.0, 1e-9) << subset;
     EXPECT_NEAR(r->scores.pmd, apparel_share, 1e-4) << subset;
   }
-  EXPECT_NE(test::error_of([&] { evaluate_predictions({dir + "/lbs.h5"}, dir + "/none.h5", options); })
-                .find("none.h5: no such predictions file"),
+  EXPECT_NE(test::error_of([&] {
+              evaluate_predictions({dir + "/lbs.h5"}, dir + "/none.h5", options);
+            }).find("none.h5: no such predictions file"),
             std::string::npos);
 }
 
@@ -300,8 +305,8 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
   test::use_one_thread();
   const std::string data = test::test_directory("eval_rules") + "/lbs.h5";
   write_lbs_dataset(data, 17);
-  const std::string dir = test::write_fresh_model(test::test_directory("eval_local_bundle"), 3,
-                                                  canonical_joint_names(), /*local_apparel=*/true);
+  const std::string dir = test::write_fresh_model(test::test_directory("eval_local_bundle"), 3, canonical_joint_names(),
+                                                  /*local_apparel=*/true);
   const ModelBundle bundle = load_model_bundle(dir);
   ASSERT_TRUE(bundle.local_apparel());
   EvaluateOptions options;
@@ -314,8 +319,9 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
   const MethodScores* rule_predicted = result.find("inertial_predicted", "paper", kHeldOutCharacters);
   ASSERT_NE(rule_predicted, nullptr);
   EXPECT_LT(result.find("inertial", "paper", kHeldOutCharacters)->scores.pmd_b, 1e-3);
-  EXPECT_GT(std::fabs(rule_predicted->scores.pmd_a - result.find("body_apparel", "paper", kHeldOutCharacters)->scores.pmd_a),
-            0.1);
+  EXPECT_GT(
+      std::fabs(rule_predicted->scores.pmd_a - result.find("body_apparel", "paper", kHeldOutCharacters)->scores.pmd_a),
+      0.1);
   EXPECT_GT(rule_predicted->scores.pmd_b, result.find("inertial", "paper", kHeldOutCharacters)->scores.pmd_b + 0.1);
   // The inertia is fitted on the train character's train clip.
   EXPECT_EQ(result.inertia_clips, 1);
@@ -339,6 +345,153 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
     EXPECT_NEAR(sum / 7, paper->scores.pmd_a, 1e-6 * paper->scores.pmd_a + 1e-9) << method;
     ASSERT_NE(result.find(method, "rollout", kHeldOutCharacters), nullptr) << method;
   }
+}
+
+// A test character with two more apparel triangles beside its first apparel vertex v, 1 cm sides: T1 = (v, v + x,
+// v + y) and T2 = (v + x, v + y, v + x + y) on copies of T1's two far corners (a seam of two pairs), skinned as v;
+// a 4-frame walk; the ground truth is LBS. With `predicted`, T2 is scaled by 1.6 about its first corner in frame 1
+// (its three edges 60 % longer: torn) and moved 10 cm along +x in frame 2.
+void write_seam_dataset(const std::string& path, bool predicted) {
+  const Skeleton skeleton = canonical_skeleton();
+  CharacterData character = capsule_example_character(skeleton, 160);
+  character.name = "seams";
+  character.split = "test";
+  int N = character.mesh.num_vertices();
+  for (int i = 0; i < N; ++i) character.apparel_mask[i] = character.body_weights(i, kPelvis) == 1.0f ? 1 : 0;
+  const int v =
+      int(std::find(character.apparel_mask.begin(), character.apparel_mask.end(), 1) - character.apparel_mask.begin());
+  const Eigen::RowVector3f x(0.01f, 0, 0), y(0, 0.01f, 0), p = character.mesh.V.row(v);
+  character.mesh.V.conservativeResize(N + 6, 3);
+  character.mesh.V.bottomRows(6) << p, p + x, p + y, p + x, p + y, p + x + y;
+  character.body_weights.conservativeResize(N + 6, Eigen::NoChange);
+  for (int k = 0; k < 6; ++k) character.body_weights.row(N + k) = character.body_weights.row(v);
+  character.apparel_mask.resize(size_t(N + 6), 1);
+  character.mesh.F.conservativeResize(character.mesh.F.rows() + 2, 3);
+  character.mesh.F.bottomRows(2) << N, N + 1, N + 2, N + 3, N + 5, N + 4;
+  N += 6;
+  DatasetWriter writer(path, 30.0f, skeleton.names);
+  writer.add_character(character);
+  const SparseWeights weights = sparsify_weights(character.body_weights);
+  const Motion walk = walk_motion(4, 30.0f, 1.0f);
+  writer.begin_clip({"seams_walk", character.name, "procedural_walk", "test", 30.0f, 0, GroundTruth::kVertices});
+  for (int t = 0; t < 4; ++t) {
+    const Transforms joints = forward_kinematics(skeleton, walk, t);
+    MatrixX3f posed;
+    linear_blend_skinning(character.mesh.V, weights, skinning_matrices(skeleton, joints), posed);
+    if (predicted && t == 1)
+      for (int k = 4; k < 6; ++k)
+        posed.row(N - 6 + k) = posed.row(N - 3) + 1.6f * (posed.row(N - 6 + k) - posed.row(N - 3));
+    if (predicted && t == 2)
+      for (int k = 3; k < 6; ++k) posed(N - 6 + k, 0) += 0.1f;
+    writer.append_frame(joints, posed);
+  }
+  writer.end_clip();
+  writer.commit();
+}
+
+// Tearing, seam gap and apparel ELS of a hand-made prediction, through the whole scoring path of amt eval.
+TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_seams");
+  write_seam_dataset(dir + "/truth.h5", false);
+  write_seam_dataset(dir + "/predicted.h5", true);
+  const CharacterData c = DatasetReader(dir + "/truth.h5").read_character("seams");
+  const int64_t apparel_edges_count = apparel_edges(unique_edges(c.mesh.F), c.apparel_mask).rows();
+  const int64_t pairs = coincident_pairs(c.mesh.V, c.mesh.F).rows();
+  ASSERT_EQ(pairs, 2);  // the seam of T1 and T2 (the capsules are closed: no seams)
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  const EvaluationResult same = evaluate_predictions({dir + "/truth.h5"}, dir + "/truth.h5", options);
+  const MethodScores* exact = same.find("predictions", "file", kHeldOutCharacters);
+  ASSERT_NE(exact, nullptr);
+  EXPECT_EQ(exact->separation.tearing, 0.0);
+  EXPECT_EQ(exact->separation.seam_gap_max_cm, 0.0);
+  EXPECT_NEAR(exact->separation.apparel_els, 1.0, 1e-6);
+
+  const EvaluationResult result = evaluate_predictions({dir + "/truth.h5"}, dir + "/predicted.h5", options);
+  const MethodScores* r = result.find("predictions", "file", kHeldOutCharacters);
+  ASSERT_NE(r, nullptr);
+  EXPECT_EQ(r->separation.pairs, pairs);
+  EXPECT_EQ(r->separation.edge_frames, 4 * apparel_edges_count);
+  // 3 torn edge-frames; in frame 1 their ELS terms are 1 - 0.6 each, every other term 1.
+  EXPECT_NEAR(r->separation.tearing, 3.0 / (4.0 * apparel_edges_count), 1e-12);
+  EXPECT_NEAR(r->separation.apparel_els, 1.0 - 3 * 0.6 / (4.0 * apparel_edges_count), 1e-5);
+  // Gaps: frame 1 one pair 0.6 cm (T2's third corner pulled off its twin), frame 2 both pairs 10 cm: of 8
+  // pair-frames the nearest-rank 95th percentile is the 8th, 10 cm.
+  EXPECT_NEAR(r->separation.seam_gap_max_cm, 10.0, 1e-3);
+  EXPECT_NEAR(r->separation.seam_gap_p95_cm, 10.0, 1e-3);
+  EXPECT_EQ(r->worst_seam_gap_max, "seams");
+  EXPECT_NEAR(r->worst.tearing, r->separation.tearing, 1e-12);  // one character: the mean is the worst
+  ASSERT_EQ(result.characters.size(), 1u);
+  const SeparationScores& per_character = result.characters[0].separation.at("predictions").at("file");
+  EXPECT_NEAR(per_character.tearing, r->separation.tearing, 1e-12);
+  EXPECT_NEAR(per_character.seam_gap_p95_cm, r->separation.seam_gap_p95_cm, 1e-12);
+
+  ReportOptions report;
+  report.out_dir = dir + "/out";
+  report.plots = false;
+  const ReportFiles files = write_report(result, report);
+  std::stringstream md, json;
+  md << std::ifstream(files.markdown).rdbuf();
+  json << std::ifstream(files.json).rdbuf();
+  EXPECT_NE(md.str().find("## Falling apart"), std::string::npos);
+  EXPECT_NE(md.str().find("| 10.000 (seams) |"), std::string::npos) << md.str();
+  EXPECT_NE(json.str().find("\"falling_apart\""), std::string::npos);
+  EXPECT_NE(json.str().find("\"seam_gap_max_cm\""), std::string::npos);
+}
+
+// amt eval --artist-style: the held-out characters remade, bound and scored as their own subset; rigid skinning
+// keeps every seam closed (the generated body's legs touch at one point, which the remake's cuts make a pair of
+// boundary vertices; the ground truth parts them as skinning does, so that pair adds no gap).
+TEST(Evaluate, ArtistStyleSubsetScoresTheRemadeCharacters) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("eval_artist_style");
+  build_dataset(test::tiny_build_options(dir + "/proc", 2));  // one of the two characters is held out
+  std::string shard;
+  CharacterData source;
+  for (const char* name : {"character-0000", "character-0001"}) {
+    const std::string path = dir + "/proc/" + name + ".h5";
+    CharacterData c = DatasetReader(path).read_character(name);
+    if (c.split == "test") shard = path, source = std::move(c);
+  }
+  ASSERT_FALSE(shard.empty());
+  const ModelBundle bundle = load_model_bundle(write_fresh_bundle("eval_artist_style_bundle"));
+  EvaluateOptions options;
+  options.progress = false;
+  options.penetration = false;
+  options.methods = {"skinning_baseline", "full"};
+  options.artist_style = true;
+  const EvaluationResult result = evaluate_model(bundle, {shard}, options);
+  EXPECT_EQ(result.clips.count(kHeldOutCharacters), 0u);
+  ASSERT_EQ(result.clips.count(kHeldOutArtistStyle), 1u);
+  const ArtistStyleCharacter remake = artist_style_character(source, options.artist_style_options);
+  ASSERT_EQ(result.characters.size(), 1u);
+  const CharacterScores& c = result.characters[0];
+  EXPECT_TRUE(c.artist_style);
+  EXPECT_EQ(c.subset, kHeldOutArtistStyle);
+  EXPECT_EQ(c.num_vertices, remake.character.mesh.num_vertices());
+  EXPECT_GT(c.construction.coincident_share, 0.6);
+  for (const char* protocol : {"paper", "rollout"}) {
+    const MethodScores* skinning = result.find("skinning_baseline", protocol, kHeldOutArtistStyle);
+    ASSERT_NE(skinning, nullptr) << protocol;
+    EXPECT_GT(skinning->separation.pairs, 0);
+    EXPECT_LT(skinning->separation.seam_gap_max_cm, 1e-3) << protocol;  // float rounding of the two partings
+    EXPECT_LT(skinning->scores.pmd_b, 0.05) << protocol;  // the body's ground truth is skinning, remade
+    ASSERT_NE(result.find("full", protocol, kHeldOutArtistStyle), nullptr) << protocol;
+  }
+  ReportOptions report;
+  report.out_dir = dir + "/out";
+  report.plots = false;
+  std::stringstream md;
+  md << std::ifstream(write_report(result, report).markdown).rdbuf();
+  EXPECT_NE(md.str().find("Subset **held-out characters, artist-style**"), std::string::npos);
+  EXPECT_NE(md.str().find("| held-out characters, artist-style | Skinning baseline"), std::string::npos);
+  EXPECT_NE(evaluation_json(result).find("\"subset\": \"held-out characters, artist-style\""), std::string::npos);
+  // A predictions file is of the characters as built.
+  EXPECT_NE(
+      test::error_of([&] { evaluate_predictions({shard}, shard, options); }).find("artist style: expected a model"),
+      std::string::npos);
 }
 
 TEST(Evaluate, SkeletonMismatchAndUnknownMethod) {
@@ -404,7 +557,8 @@ TEST(Report, WritesTablesJsonAndPlots) {
     ASSERT_EQ(files.plots.size(), 2u) << md.str();
     EXPECT_EQ(files.plots[0], "loss_apparel.png");
     EXPECT_EQ(files.plots[1], "rollout_pmd_a.png");
-    for (const std::string& plot : files.plots) EXPECT_GT(std::filesystem::file_size(report.out_dir + "/" + plot), 1000u);
+    for (const std::string& plot : files.plots)
+      EXPECT_GT(std::filesystem::file_size(report.out_dir + "/" + plot), 1000u);
   }
   const std::vector<TrainingLog> logs = read_training_logs(model);
   ASSERT_EQ(logs.size(), 1u);

@@ -104,7 +104,7 @@ TEST(ArtistStyle, CountsLookLikeRealModels) {
 TEST(ArtistStyle, CoincidentCopiesHaveIdenticalRestPositionsAndGroundTruth) {
   const Character& c = test_character();
   const ArtistStyleCharacter& a = c.remake;
-  const MatrixX2i pairs = coincident_pairs(a.character.mesh.V);
+  const MatrixX2i pairs = coincident_pairs(a.character.mesh.V, a.character.mesh.F);
   ASSERT_GT(pairs.rows(), a.character.mesh.num_vertices() / 3);
   // The rest pose remade is the remake's rest mesh.
   const MatrixX3f rest = remake_frame(a, c.source.mesh.V, rest_pose(c.source.skeleton));
@@ -253,7 +253,7 @@ TEST(ArtistStyle, SubdivisionReachesTheTargetAndInterpolatesTheGroundTruth) {
   EXPECT_LE(m.coincident_share, 0.84);
   const auto [frame, joints] = posed_source(c.source);
   const MatrixX3f posed = remake_frame(a, frame, joints);
-  const MatrixX2i pairs = coincident_pairs(a.character.mesh.V);
+  const MatrixX2i pairs = coincident_pairs(a.character.mesh.V, a.character.mesh.F);
   for (Eigen::Index p = 0; p < pairs.rows(); ++p) {
     if (a.source[size_t(pairs(p, 0))] != a.source[size_t(pairs(p, 1))]) continue;
     ASSERT_EQ(posed.row(pairs(p, 0)), posed.row(pairs(p, 1)));
@@ -317,7 +317,7 @@ TEST(SeparationMeasures, TearingSeamGapAndApparelElsByHand) {
       0.1f, 0, 0, 1.1f, 0, 0, 0.1f, 1, 0;   // B
   MatrixX3i F(2, 3);
   F << 0, 1, 2, 3, 4, 5;
-  const MatrixX2i pairs = coincident_pairs(rest);
+  const MatrixX2i pairs = coincident_pairs(rest, F);
   ASSERT_EQ(pairs.rows(), 1);
   EXPECT_EQ(pairs(0, 0), 1);
   EXPECT_EQ(pairs(0, 1), 3);
