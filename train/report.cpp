@@ -110,9 +110,10 @@ std::string worst_cell(double value, int digits, const std::string& character) {
 void write_falling_apart(std::ostringstream& md, const EvaluationResult& result) {
   if (result.rows.empty()) return;
   md << "## Falling apart\n\nTearing: share of apparel edge-frames (edges with an apparel vertex) whose predicted "
-        "length is off the ground truth's by more than 50 %. Seam gap: over the pairs of vertices that coincide at "
-        "rest (within 0.1 mm: a seam's duplicated vertices), their distance apart in the prediction, 95th percentile "
-        "and largest over pairs and frames, cm. ELS_a: ELS over apparel edges. Each is the mean over the subset's "
+        "length is off the ground truth's by more than 50 %. Seam gap: over the pairs of boundary vertices that "
+        "coincide at rest (within 0.1 mm: a seam's duplicated vertices), their distance apart in the prediction "
+        "beyond the ground truth's, 95th percentile and largest over pairs and frames, cm (– without such pairs). "
+        "ELS_a: ELS over apparel edges. Each is the mean over the subset's "
         "characters, with the worst character beside it.\n\n"
         "| Subset | Protocol | Method | Tearing | worst | Seam gap p95 (cm) | worst | Seam gap max (cm), worst | "
         "ELS_a | worst | ELS |\n|---|---|---|---:|---|---:|---|---|---:|---|---:|\n";
