@@ -1,0 +1,119 @@
+#pragma once
+// The topology amt derives from an artist's mesh, and the handles that move its apparel.
+//
+// Artists' models split vertices at every UV seam (two coincident vertices that must move as one) and
+// build hair, skirts and capes from many separate, overlapping, double-sided strips and panels. Every
+// graph amt builds on a mesh (the apparel graph, attachment paths, connected parts, geodesics) is built
+// on the **linked** edge set: the mesh's own edges, plus a zero-length seam link from every vertex to
+// the vertex it welds to, plus proximity links between separate apparel pieces that lie within a few
+// millimetres of each other at rest (a bundle of hair strips, the two sides of a double-sided panel,
+// layered skirt panels). The existing graph algorithms then see one piece where the artist made many.
+//
+// Apparel on handles: each apparel piece moves through a small set of handles, apparel vertices picked
+// along the distance from where the piece hangs (so they form chains down a strand and rings round a
+// skirt), with smooth weights from handles to vertices over the linked graph, shared by every strip
+// that lies with them. A handle's motion is the learned module's output; a vertex follows by
+// interpolating its handles' offsets from where rigid skinning carries them, so it cannot tear.
+// Hand-written: no Debian library builds such rigs (the graph searches are a few bounded Dijkstras).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "data_tools/geometry/types.h"
+
+namespace amt {
+
+// === Linked topology
+
+/// Choices of linked_topology.
+///   weld_tolerance     vertices nearer than this (metres) are one point (weld_vertices)
+///   proximity_radius   apparel vertices of different welded parts nearer than this (metres) are linked
+///                      (0: no proximity links)
+///   proximity_links    at most this many proximity links from each vertex (to its nearest vertices in
+///                      other parts, one per part)
+struct TopologyOptions {
+  float weld_tolerance = 1e-3f;
+  float proximity_radius = 4e-3f;
+  int proximity_links = 2;
+};
+
+/// What linked_topology found.
+///   edges            #E by 2 unique edges (i < j): the mesh's, seam links, proximity links
+///   weld             #V: the smallest index of the vertices each vertex welds to (weld_vertices)
+///   seam_links       links from a vertex to a coincident copy (zero or tiny length)
+///   proximity_links  links between separate apparel pieces
+///   refused_links    coincident pairs left apart because the mask calls one body and the other apparel
+///   parts, welded_parts, linked_parts   connected parts of the mesh's edges, with seam links, and with
+///                    every link
+struct LinkedTopology {
+  MatrixX2i edges;
+  std::vector<int32_t> weld;
+  int seam_links = 0, proximity_links = 0, refused_links = 0;
+  int parts = 0, welded_parts = 0, linked_parts = 0;
+};
+
+/// The linked edge set of (V, F). `apparel_mask` (#V entries 0/1, or empty: everything is apparel for
+/// the proximity links and no weld is refused) says which vertices the proximity links join; a weld
+/// between a body and an apparel vertex is refused and counted (the mask decides which side each copy
+/// moves with). Deterministic. Throws amt::Error on options out of range or a mask of another length.
+LinkedTopology linked_topology(const MatrixX3f& V, const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask,
+                               const TopologyOptions& options = {});
+
+/// The mask made the same on every weld group (weld from linked_topology or weld_vertices): a copy takes
+/// its group's smallest vertex's value, so that a seam never straddles body and apparel. Returns how many
+/// entries changed in `changed` when given.
+std::vector<uint8_t> weld_consistent_mask(const std::vector<uint8_t>& mask, const std::vector<int32_t>& weld,
+                                          int* changed = nullptr);
+
+/// Each vertex's canonical copy: the vertex it welds to (weld, from linked_topology) when the mask puts
+/// both on the same side, else itself (a refused weld).
+std::vector<int32_t> canonical_copies(const std::vector<int32_t>& weld, const std::vector<uint8_t>& mask);
+
+/// Geodesic distances (ids.size(), J) of the vertices `ids` (ascending) over the sub-mesh of those vertices
+/// as geodesic_distances computes them, on the mesh welded by `canon` (canonical_copies): every face corner
+/// is replaced by its canonical copy, the distances are computed for the canonical vertices among ids, and
+/// each copy takes its canonical vertex's row, so coincident copies get the same distances (a UV seam is
+/// no cut). Throws amt::Error naming `what` when the sub-mesh has no faces or a copy's canonical vertex is
+/// not among ids.
+MatrixXfR welded_geodesics(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints,
+                           const std::vector<int32_t>& ids, const std::vector<int32_t>& canon, const std::string& what);
+
+// === Handles
+
+/// Choices of apparel_handles.
+///   spacing     handles are at least this far apart along the linked apparel graph (metres, > 0)
+///   radius      a vertex is moved by the handles within this graph distance (metres, > spacing)
+///   max_handles per vertex, the nearest (>= 1)
+struct HandleOptions {
+  float spacing = 0.04f;
+  float radius = 0.09f;
+  int max_handles = 4;
+};
+
+/// A rig of handles over the apparel vertices (positions in the caller's apparel list).
+///   handles          H positions in the apparel list, in the order they were picked (nearest to where
+///                    the piece hangs first)
+///   vertex_handles   N_a by max_handles handle indices (0..H-1), nearest first, padded with the first
+///   vertex_weights   N_a by max_handles weights, rows sum to 1, padding 0
+///   handle_edges     #E by 2 pairs of handle indices (i < j): handles whose regions overlap (a vertex
+///                    weighted by both, or one within radius of the other)
+struct ApparelHandles {
+  std::vector<int32_t> handles;
+  Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> vertex_handles;
+  MatrixXfR vertex_weights;
+  MatrixX2i handle_edges;
+  int num_handles() const { return static_cast<int>(handles.size()); }
+};
+
+/// Handles of the apparel vertices `apparel` (ascending mesh indices) of V, over the edges `edges` (mesh
+/// indices; the linked edges) between apparel vertices, picked greedily in order of `hang_distance`
+/// (N_a entries, each vertex's distance along the apparel from where its piece hangs; ties by position):
+/// a vertex becomes a handle when no handle is within `spacing` of it along the graph. A vertex's weights
+/// are (1 - (d / radius)^2)^2 of its graph distance d to each handle within radius, the nearest
+/// max_handles kept and normalised; a vertex that no handle reaches within radius (none: every vertex is
+/// within spacing of one) would take its nearest. Deterministic. Throws amt::Error on options out of
+/// range or inputs of the wrong size.
+ApparelHandles apparel_handles(const MatrixX3f& V, const MatrixX2i& edges, const std::vector<int32_t>& apparel,
+                               const std::vector<float>& hang_distance, const HandleOptions& options = {});
+
+}  // namespace amt
