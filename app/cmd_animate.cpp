@@ -46,7 +46,8 @@ void add_animate_command(CLI::App& app) {
   cmd->add_option("--bvh-scale", *bvh_scale, "Metres per BVH unit (default: detected)")
       ->check(CLI::Range(1e-6, 1000.0));
   cmd->add_option("--apparel-mask", o->apparel_mask,
-                  "Where the apparel mask comes from: model (the segmenter, default), rig (the character's own rig: "
+                  "Where the apparel mask comes from: auto (default: the character's rig when it has one, else the "
+                  "segmenter; the run says which), model (the segmenter), rig (the character's own rig: "
                   "a PMX model's physics-driven vertices, a glTF's chains of bones outside the canonical skeleton, a "
                   "dataset or generated character's apparel), or a "
                   "per-vertex 0/1 mask file (JSON array or text)");
@@ -74,7 +75,8 @@ void add_animate_command(CLI::App& app) {
     AMT_CHECK(out->count() > 0 || html->count() > 0, "--out: expected an output (or --html DIR), found none");
     if (html->count() > 0) {
       options.viewer_dir = find_repository_folder("viewer");
-      AMT_CHECK(!options.viewer_dir.empty(), "--html: expected the repository's viewer/ folder above the amt program "
+      AMT_CHECK(!options.viewer_dir.empty(),
+                "--html: expected the repository's viewer/ folder above the amt program "
                 "or in the current folder, found none: run amt from a checkout");
     }
     if (model->count() == 0 && options.apparel != "physics")

@@ -51,9 +51,9 @@ void report(const TrainResult& result) {
             << result.last_step << ", " << 1e3 * result.seconds_per_step << " ms/step, " << result.samples_per_second
             << " samples/s, wall " << result.wall_seconds << " s";
   if (result.world_size > 1) {
-    std::cout << ", " << result.world_size << " ranks, gradient exchange " << 1e3 * result.communication_seconds_per_step
-              << " ms/step (all-reduce of " << kibibytes(result.gradient_bytes) << " KiB "
-              << 1e3 * result.allreduce_seconds_per_step << ")";
+    std::cout << ", " << result.world_size << " ranks, gradient exchange "
+              << 1e3 * result.communication_seconds_per_step << " ms/step (all-reduce of "
+              << kibibytes(result.gradient_bytes) << " KiB " << 1e3 * result.allreduce_seconds_per_step << ")";
   }
   if (!result.validation_losses.empty()) std::cout << ", val_loss " << result.validation_losses.back();
   std::cout << "; wrote";
@@ -134,8 +134,9 @@ void add_train_command(CLI::App& app) {
       ->add_option("--lr-schedule", o.lr_schedule, "constant (the paper's) or cosine (decays to 0 at --lr-decay-steps)")
       ->check(CLI::IsMember({"constant", "cosine"}))
       ->capture_default_str();
-  train->add_option("--lr-decay-steps", o.lr_decay_steps,
-                    "Step at which the cosine schedule reaches 0 (0: --steps of the run that starts)")
+  train
+      ->add_option("--lr-decay-steps", o.lr_decay_steps,
+                   "Step at which the cosine schedule reaches 0 (0: --steps of the run that starts)")
       ->capture_default_str();
   train
       ->add_option("--weight-loss", o.weights.skinning_weights,
@@ -185,6 +186,11 @@ void add_train_command(CLI::App& app) {
                    "Local apparel: share of windows rolled out from the rest pose at their clip's start")
       ->capture_default_str();
   train
+      ->add_option("--handle-spacing", o.handle_spacing,
+                   "Local apparel: move handles about this far apart (metres) that the vertices follow, instead of "
+                   "every vertex (0: every vertex); for a fresh run or one started with --init")
+      ->check(CLI::Range(0.0, 1.0));
+  train
       ->add_option("--free-run", o.free_run,
                    "Local apparel: at most this many frames rolled out without gradient before the unroll "
                    "(pushforward; --window must hold 3 + this + the longest unroll)")
@@ -226,12 +232,14 @@ void add_train_command(CLI::App& app) {
   train->add_option("--loader-threads", o.loader_threads, "Threads reading samples ahead of training")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
-  train->add_flag("--no-segmenter-augment", [command](int64_t) { command->options.segmenter_augment = false; },
-                  "Segmenter with inputs welded: train on the characters as built only (no open-parts, bare-body, "
-                  "mirrored, turned or scaled variants)");
-  train->add_option("--segmenter-held-weight", command->options.segmenter_held_weight,
-                    "Segmenter: loss weight of the held rows, the body vertices of parts that also hold apparel "
-                    "(where a piece hangs from the body)")
+  train->add_flag(
+      "--no-segmenter-augment", [command](int64_t) { command->options.segmenter_augment = false; },
+      "Segmenter with inputs welded: train on the characters as built only (no open-parts, bare-body, "
+      "mirrored, turned or scaled variants)");
+  train
+      ->add_option("--segmenter-held-weight", command->options.segmenter_held_weight,
+                   "Segmenter: loss weight of the held rows, the body vertices of parts that also hold apparel "
+                   "(where a piece hangs from the body)")
       ->check(CLI::Range(0.01, 1000.0))
       ->capture_default_str();
   train

@@ -9,8 +9,8 @@
 #include <iostream>
 
 #include "data_tools/formats/checksum_torch.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
+#include "data_tools/geometry/error.h"
 #include "infer/bind_cache_torch.h"
 #include "train/checkpoint.h"
 
@@ -40,7 +40,13 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"apparel_contact_rest", &BoundCharacter::apparel_contact_rest},
           {"apparel_contact_weights", &BoundCharacter::apparel_contact_weights},
           {"apparel_ancestors", &BoundCharacter::apparel_ancestors},
-          {"vertex_weights", &BoundCharacter::vertex_weights}};
+          {"vertex_weights", &BoundCharacter::vertex_weights},
+          {"graph_edges", &BoundCharacter::graph_edges},
+          {"topology_counts", &BoundCharacter::topology_counts},
+          {"handle_rows", &BoundCharacter::handle_rows},
+          {"handle_vertex_handles", &BoundCharacter::handle_vertex_handles},
+          {"handle_vertex_weights", &BoundCharacter::handle_vertex_weights},
+          {"handle_edges", &BoundCharacter::handle_edges}};
 }
 
 uint64_t hash_file(const std::string& path, uint64_t hash) {
@@ -79,10 +85,10 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
     }
   } else {
     // A bundle assembled in code: hash its parameters.
-    for (const torch::nn::Module* m : {static_cast<const torch::nn::Module*>(bundle.segmenter.get()),
-                                       static_cast<const torch::nn::Module*>(bundle.skinning.get()),
-                                       bundle.apparel_module(),
-                                       static_cast<const torch::nn::Module*>(bundle.refiner.get())}) {
+    for (const torch::nn::Module* m :
+         {static_cast<const torch::nn::Module*>(bundle.segmenter.get()),
+          static_cast<const torch::nn::Module*>(bundle.skinning.get()), bundle.apparel_module(),
+          static_cast<const torch::nn::Module*>(bundle.refiner.get())}) {
       if (!m) continue;
       for (const at::Tensor& p : m->parameters()) {
         const at::Tensor c = p.detach().to(at::kFloat).contiguous();
@@ -160,7 +166,7 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
   }
   for (const char* required : {"V", "faces", "joints", "edges", "apparel_mask", "refiner_prob", "apparel_ids",
                                "body_ids", "apparel_neighbors", "body_weights", "apparel_anchor_weights",
-                               "apparel_frame_joints", "apparel_rest_features"}) {
+                               "apparel_frame_joints", "apparel_rest_features", "graph_edges", "topology_counts"}) {
     at::Tensor t;
     if (!archive.try_read(required, t)) return miss(std::string("damaged cache file (no ") + required + ")");
   }

@@ -19,7 +19,8 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 5;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed
+inline constexpr int64_t kBindVersion = 6;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
+                                            // 6: the linked topology and the handles
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;

@@ -14,11 +14,11 @@
 #include <optional>
 #include <sstream>
 
+#include "data_tools/formats/render.h"
+#include "data_tools/formats/viewer_folder.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/motion.h"
-#include "data_tools/formats/render.h"
-#include "data_tools/formats/viewer_folder.h"
 #include "infer/pmx_physics_player.h"
 
 namespace amt {
@@ -102,7 +102,8 @@ FrameTimes RuntimeSession::step(const Transforms& joint_transforms, MatrixX3f& V
     std::memcpy(V.data(), c.data_ptr<float>(), size_t(c.numel()) * sizeof(float));
     if (first_exploded(V.data(), V.rows(), apply(joint_transforms.at(0), root_rest_), output_bound_) >= 0) {
       // Name the first stage whose output is already broken (B̂, then Â, then the refiner's V̂).
-      for (const auto& [part, stage] : {std::pair{out.B_hat, "skinning (LBS)"}, std::pair{out.A_hat, "apparel module"}}) {
+      for (const auto& [part, stage] :
+           {std::pair{out.B_hat, "skinning (LBS)"}, std::pair{out.A_hat, "apparel module"}}) {
         if (!part.defined() || part.numel() == 0) continue;
         const at::Tensor p = part.contiguous();
         check_output(p.data_ptr<float>(), p.size(0), joint_transforms, stage);
@@ -249,7 +250,8 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   const auto job_start = Clock::now();
   AnimateSummary s;
   s.physics = true;
-  AMT_CHECK(o.html_dir.empty(), "--html: expected no viewer folder with --apparel physics (it shows the learned "
+  AMT_CHECK(o.html_dir.empty(),
+            "--html: expected no viewer folder with --apparel physics (it shows the learned "
             "prediction beside skinning); use --out FILE.glb");
   AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
   output_kind(o.out);
@@ -272,7 +274,8 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   for (const uint8_t m : pmx.apparel_mask) apparel += m;
   s.apparel = "physics (the PMX model's own " + std::to_string(pmx.simulated_bodies) + " simulated rigid bodies and " +
               std::to_string(pmx.model.joints.size()) + " joints, MMD gravity, simulated in PMX units)";
-  s.apparel_source = "the PMX physics: " + std::to_string(apparel) + " vertices on bones that simulated rigid bodies drive";
+  s.apparel_source =
+      "the PMX physics: " + std::to_string(apparel) + " vertices on bones that simulated rigid bodies drive";
   if (o.verbose) {
     print_inputs(character, source);
     for (const std::string& warning : pmx.warnings) std::cerr << "animate: warning: " << warning << "\n";
@@ -340,13 +343,19 @@ AnimateSummary animate(const AnimateOptions& o) {
   check_bundle_skeleton(bundle, character.skeleton.names, o.model_dir);
   std::vector<uint8_t> mask_override;
   s.apparel_source = "the segmenter";
-  if (o.apparel_mask == "rig") {
+  const bool use_rig = o.apparel_mask == "rig" ||
+                       ((o.apparel_mask.empty() || o.apparel_mask == "auto") && !character.rig_apparel_mask.empty());
+  if (o.apparel_mask.empty() || o.apparel_mask == "auto") {
+    s.apparel_source = use_rig ? "" : "the segmenter (--apparel-mask auto: the character has no rig)";
+  }
+  if (use_rig) {
     AMT_CHECK(!character.rig_apparel_mask.empty(), o.character.spec, ": --apparel-mask rig: the character's rig ",
               "names no apparel (no simulated rigid bodies driving bones); expected a PMX model with physics, a ",
               "dataset character or generated:SEED; use --apparel-mask model (the segmenter) or a mask file");
     mask_override = character.rig_apparel_mask;
-    s.apparel_source = "the rig: " + character.rig_apparel;
-  } else if (!o.apparel_mask.empty() && o.apparel_mask != "model") {
+    s.apparel_source = "the rig: " + character.rig_apparel +
+                       (o.apparel_mask == "rig" ? "" : " (--apparel-mask auto: the character has a rig)");
+  } else if (!o.apparel_mask.empty() && o.apparel_mask != "model" && o.apparel_mask != "auto") {
     mask_override = read_apparel_mask(o.apparel_mask, character.mesh.num_vertices());
     s.apparel_source = "the file " + o.apparel_mask;
   }
@@ -360,9 +369,10 @@ AnimateSummary animate(const AnimateOptions& o) {
 
   // An unwritable output fails before the work.
   if (!o.out.empty()) check_output_writable(o.out);
-  const std::string prediction_glb = (html / "prediction.glb").string(), skinning_glb = (html / "skinning.glb").string();
+  const std::string prediction_glb = (html / "prediction.glb").string(),
+                    skinning_glb = (html / "skinning.glb").string();
   if (!o.html_dir.empty()) check_output_writable(prediction_glb), check_output_writable(skinning_glb);
-  s.bind_path = o.bind_path.empty()  ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
+  s.bind_path = o.bind_path.empty()     ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
   const BindResult bind =
@@ -370,6 +380,8 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
   s.hung = bind.bound.hung;
+  s.topology = bind.bound.topology();
+  s.handles = bind.bound.handle_rows.defined() ? bind.bound.handle_rows.size(0) : 0;
   if (o.verbose) {
     std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
               << " in " << bind.seconds << " s\n";
@@ -390,8 +402,9 @@ AnimateSummary animate(const AnimateOptions& o) {
   if (!o.html_dir.empty()) {
     ViewerManifest manifest;
     manifest.title = character.name + " · " + source.name;
-    manifest.groups.push_back({"amt animate: the prediction beside rigid skinning (apparel glued to its anchor)",
-                               {{"prediction.glb", "prediction", "prediction"}, {"skinning.glb", "skinning", "skinning"}}});
+    manifest.groups.push_back(
+        {"amt animate: the prediction beside rigid skinning (apparel glued to its anchor)",
+         {{"prediction.glb", "prediction", "prediction"}, {"skinning.glb", "skinning", "skinning"}}});
     write_viewer_folder(o.html_dir, o.viewer_dir, manifest);
     html_prediction = open_frame_writer(prediction_glb, info);
     html_skinning = open_frame_writer(skinning_glb, info);
@@ -465,9 +478,31 @@ std::string describe(const AnimateSummary& s) {
                   s.hung.unnailed == 1 ? "" : "s");
     out << line;
   }
+  if (!s.physics) {
+    const TopologyCounts& t = s.topology;
+    std::snprintf(line, sizeof(line),
+                  "topology: %lld connected parts, %lld with %lld seam copies welded, %lld with %lld proximity links "
+                  "between apparel pieces%s\n",
+                  (long long)t.parts, (long long)t.welded_parts, (long long)t.seam_links, (long long)t.linked_parts,
+                  (long long)t.proximity_links, s.handles > 0 ? "" : "; the apparel module moves every apparel vertex");
+    out << line;
+    if (s.handles > 0) {
+      std::snprintf(line, sizeof(line), "apparel on %lld handles (%.1f apparel vertices each)\n", (long long)s.handles,
+                    double(s.apparel_vertices) / double(s.handles));
+      out << line;
+    }
+    if (t.refused_welds > 0) {
+      std::snprintf(line, sizeof(line),
+                    "warning: %lld coincident vertex pair%s straddle body and apparel in the given mask: left apart, "
+                    "each side moves with its own part (a seam there can open)\n",
+                    (long long)t.refused_welds, t.refused_welds == 1 ? "" : "s");
+      out << line;
+    }
+  }
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
-    std::snprintf(line, sizeof(line), "time per frame: median %.2f ms, p95 %.2f ms (physics and skinning %.2f, output %.2f ms mean)\n",
+    std::snprintf(line, sizeof(line),
+                  "time per frame: median %.2f ms, p95 %.2f ms (physics and skinning %.2f, output %.2f ms mean)\n",
                   1e3 * s.frame_median, 1e3 * s.frame_p95, 1e3 * s.mean.model, 1e3 * s.mean.output);
     out << line;
     std::snprintf(line, sizeof(line), "total: %.1f s\n", s.total_seconds);

@@ -8,12 +8,12 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/garment/penetration_resolution.h"
 #include "data_tools/geometry/metrics.h"
 #include "infer/bind_cache_torch.h"
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 #include "infer/motion_input.h"
-#include "data_tools/garment/penetration_resolution.h"
 #include "train/pipeline.h"
 
 namespace amt {
@@ -61,9 +61,9 @@ class RuntimeSession {
   std::unique_ptr<PipelineStepper> stepper_;
   PenetrationResolver resolver_;
   bool resolve_;
-  float output_bound_ = 0;   // metres from the root joint
+  float output_bound_ = 0;     // metres from the root joint
   Eigen::Vector3f root_rest_;  // the root joint at rest
-  int64_t frame_ = 0;       // frames of step() so far
+  int64_t frame_ = 0;          // frames of step() so far
   void check_output(const float* P, int64_t n, const Transforms& joint_transforms, const char* stage) const;
 };
 
@@ -89,8 +89,9 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 ///   html_dir    when not empty, also a viewer folder (data_tools/formats/viewer_folder.h): prediction.glb and
 ///               skinning.glb (anchor_skinning_weights) side by side, opened with `amt view html_dir`;
 ///               viewer_dir is the repository's viewer/ its page is copied from
-///   apparel_mask  where the apparel mask comes from: "model" or empty (the segmenter), "rig" (the character's
-///               own rig: RuntimeCharacter::rig_apparel_mask), or a mask file (read_apparel_mask)
+///   apparel_mask  where the apparel mask comes from: "auto" or empty (the rig when the character has one, else
+///               the segmenter), "model" (the segmenter), "rig" (the character's own rig:
+///               RuntimeCharacter::rig_apparel_mask), or a mask file (read_apparel_mask)
 ///   apparel     what moves the apparel: "learned" or empty (the apparel module of the model), or "physics" (a PMX
 ///               model's own rigid bodies and joints, infer/pmx_physics_player.h: no network, no bind; the whole
 ///               mesh skinned by the model's own rig; not with html_dir)
@@ -124,6 +125,10 @@ struct AnimateSummary {
   std::string apparel_source;
   /// What the bind changed in the segmenter's mask so that each piece hangs from one place.
   HungPieces hung;
+  /// The linked topology of the bound mesh (seams welded, nearby pieces linked), and the apparel module's
+  /// handles (0: it moves every apparel vertex).
+  TopologyCounts topology;
+  int64_t handles = 0;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.

@@ -193,6 +193,12 @@ struct ApparelDynamicsOptions {
   /// steps it lowered the validation loss by 1 % only (models/pretrained/README.md). Checkpoints
   /// written before this field existed have 0.
   int64_t reach_levels = 0;
+  /// 0: every apparel vertex is a node of the module (the per-vertex form). > 0: the module moves handles
+  /// about this far apart (metres, along the apparel; apparel_handles in data_tools/geometry/
+  /// apparel_topology.h) and every vertex follows its handles (follow_handles): a piece cannot tear, and the
+  /// network runs on hundreds of handles instead of thousands of vertices. Checkpoints written before this
+  /// field existed have 0.
+  double handle_spacing = 0.0;
 };
 
 /// f_d in local coordinates: apparel history, the motion and the anchors of frames t-3..t -> A^(t).

@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <set>
 #include <vector>
@@ -65,6 +66,7 @@ void visit(ApparelDynamicsOptions& o, Visitor&& v) {
   v("naive_edge_conv", o.naive_edge_conv);
   v("contact", o.contact);
   v("reach_levels", o.reach_levels);
+  v("handle_spacing", o.handle_spacing);
 }
 
 template <typename Visitor>
@@ -239,6 +241,10 @@ void options_from_json(const std::string& text, const std::string& source, Appar
   // Likewise one written before the contact inputs has none.
   if (j.contains("form") && !j.contains("contact")) options.contact = false;
   if (j.contains("form") && !j.contains("reach_levels")) options.reach_levels = 0;
+  if (j.contains("form") && !j.contains("handle_spacing")) options.handle_spacing = 0.0;
+  AMT_CHECK(std::isfinite(options.handle_spacing) && options.handle_spacing >= 0 && options.handle_spacing <= 1, source,
+            ": options.handle_spacing: expected 0 (every vertex) or a spacing in (0, 1] metres, found ",
+            options.handle_spacing);
   AMT_CHECK(options.anchor == "attachment" || options.anchor == "nearest", source,
             ": options.anchor: expected \"attachment\" or \"nearest\", found \"", options.anchor, "\"");
   AMT_CHECK(options.form == "local", source, ": options.form: expected \"local\" (the apparel dynamics module), found \"",

@@ -6,13 +6,14 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
-#include <numeric>
 #include <map>
+#include <numeric>
 #include <sstream>
 
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/lbs_torch.h"
@@ -29,9 +30,12 @@ namespace fs = std::filesystem;
 
 const char* variant_name(SkinningVariant variant) {
   switch (variant) {
-    case SkinningVariant::kGeodesicAttention: return "geodesic attention";
-    case SkinningVariant::kNoGeodesic: return "no geodesic";
-    case SkinningVariant::kSortByGeodesic: return "sort by geodesic";
+    case SkinningVariant::kGeodesicAttention:
+      return "geodesic attention";
+    case SkinningVariant::kNoGeodesic:
+      return "no geodesic";
+    case SkinningVariant::kSortByGeodesic:
+      return "sort by geodesic";
   }
   return "?";
 }
@@ -67,21 +71,42 @@ at::Tensor edge_tensor(const MatrixX2i& E) {
   return at::from_blob(const_cast<int32_t*>(E.data()), {E.rows(), 2}, at::kInt).to(at::kLong);
 }
 
-// Geodesic distances (N_s, J) over the sub-mesh of the vertices `ids` and the faces whose three corners
-// are among them, exactly as train/samples.cpp computes G_body.
-at::Tensor submesh_geodesics(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints, const at::Tensor& ids,
-                             const char* what) {
+// welded_geodesics of the vertices `ids` (int64 tensor) as a (N_s, J) float tensor.
+at::Tensor welded_geodesics_tensor(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints,
+                                   const at::Tensor& ids, const std::vector<int32_t>& canon, const char* what) {
   const at::Tensor id = ids.to(at::kInt).contiguous();
-  const TriMesh part = submesh(V, F, std::vector<int32_t>(id.data_ptr<int32_t>(), id.data_ptr<int32_t>() + id.numel()));
-  AMT_CHECK(part.F.rows() > 0, "bind: faces: the skinning predictor needs faces between ", what,
-            " vertices, found none (", part.V.rows(), " ", what, " vertices)");
-  return from_matrix(geodesic_distances(part.V, part.F, joints));
+  const std::vector<int32_t> list(id.data_ptr<int32_t>(), id.data_ptr<int32_t>() + id.numel());
+  return from_matrix(welded_geodesics(V, F, joints, list, canon, what));
+}
+
+std::vector<uint8_t> mask_vector(const at::Tensor& mask) {
+  const at::Tensor m = mask.to(at::kByte).contiguous();
+  return std::vector<uint8_t>(m.data_ptr<uint8_t>(), m.data_ptr<uint8_t>() + m.numel());
+}
+
+at::Tensor mask_tensor(const std::vector<uint8_t>& mask) {
+  return at::tensor(at::ArrayRef<uint8_t>(mask), at::kByte).to(at::kBool);
+}
+
+// Rows (N_a, ...) over the apparel vertices apparel_ids with each vertex's row replaced by its canonical copy's
+// (canonical_copies): ties in the graph searches cannot give coincident copies different anchors or handles.
+at::Tensor canonical_rows(const at::Tensor& rows, const at::Tensor& apparel_ids, const std::vector<int32_t>& canon) {
+  const at::Tensor ids = apparel_ids.to(at::kLong).contiguous();
+  const int64_t* first = ids.data_ptr<int64_t>();
+  const int64_t n = ids.numel();
+  std::vector<int64_t> source(static_cast<size_t>(n));
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t c = canon[size_t(first[k])];
+    const int64_t* at = std::lower_bound(first, first + n, c);
+    source[size_t(k)] = at != first + n && *at == c ? at - first : k;
+  }
+  return rows.index_select(0, at::tensor(source, at::kLong)).contiguous();
 }
 
 // The local apparel module's per-character inputs from the bound parts and anchor weights.
 void set_apparel_graph(BoundCharacter& c) {
-  const ApparelGraph g = apparel_graph(c.V, c.edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights, c.joints,
-                                       c.apparel_neighbors, c.body_weights);
+  const ApparelGraph g = apparel_graph(c.V, c.graph_edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights,
+                                       c.joints, c.apparel_neighbors, c.body_weights);
   c.apparel_frame_joints = g.frame_joints;
   c.apparel_rest_features = g.rest_features;
   c.apparel_contact_rest = g.contact_rest;
@@ -112,7 +137,8 @@ const torch::nn::Module* ModelBundle::apparel_module() const {
 
 ModelBundle load_segmenter_bundle(const std::string& checkpoint) {
   std::error_code error;
-  AMT_CHECK(fs::is_regular_file(checkpoint, error), checkpoint, ": no such checkpoint (train it with amt train segmenter)");
+  AMT_CHECK(fs::is_regular_file(checkpoint, error), checkpoint,
+            ": no such checkpoint (train it with amt train segmenter)");
   ModelBundle bundle;
   CheckpointInfo info;
   bundle.segmenter =
@@ -203,8 +229,9 @@ ModelBundle load_model_bundle(const std::string& dir) {
 void check_bundle_skeleton(const ModelBundle& bundle, const std::vector<std::string>& joint_names,
                            const std::string& source) {
   AMT_CHECK(joint_names == bundle.joint_names, source, ": skeleton: the model ",
-            (bundle.dir.empty() ? std::string() : "(" + bundle.dir + ") "), "was trained on ", bundle.joint_names.size(),
-            " joints (", joined(bundle.joint_names), "), this has ", joint_names.size(), " (", joined(joint_names), ")");
+            (bundle.dir.empty() ? std::string() : "(" + bundle.dir + ") "), "was trained on ",
+            bundle.joint_names.size(), " joints (", joined(bundle.joint_names), "), this has ", joint_names.size(),
+            " (", joined(joint_names), ")");
 }
 
 // === Bind
@@ -294,7 +321,8 @@ at::Tensor hang_apparel_pieces(const at::Tensor& mask, const at::Tensor& prob, c
 BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F,
                               const at::Tensor& joints, const BindOptions& options) {
   AMT_CHECK(V.defined() && V.dim() == 2 && V.size(1) == 3 && V.size(0) > 0,
-            "bind: V: expected (N, 3) rest positions with N > 0, found ", (V.defined() ? V.sizes() : at::IntArrayRef{}));
+            "bind: V: expected (N, 3) rest positions with N > 0, found ",
+            (V.defined() ? V.sizes() : at::IntArrayRef{}));
   AMT_CHECK(F.defined() && F.dim() == 2 && F.size(1) == 3, "bind: F: expected (F, 3) faces, found ",
             (F.defined() ? F.sizes() : at::IntArrayRef{}));
   AMT_CHECK(joints.defined() && joints.dim() == 2 && joints.size(1) == 3 && joints.size(0) == bundle.num_joints(),
@@ -314,22 +342,48 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   const MatrixX3i F_e = to_matrix3i(c.faces);
   c.edges = edge_tensor(unique_edges(F_e));
 
-  // Segmentation (eq. 2) and the mask in use.
+  // Segmentation (eq. 2) and the mask in use, on the linked topology: coincident copies are one point
+  // (the segmenter sees them alike; a copy takes its weld group's value so that no seam straddles body and
+  // apparel), and pieces that lie together hang together.
+  const TopologyOptions topology_options;
   c.apparel_prob = apparel_probabilities(bundle, V_e, F_e, joints_e);
+  std::vector<uint8_t> mask;
   if (options.apparel_mask.defined()) {
-    AMT_CHECK(options.apparel_mask.dim() == 1 && options.apparel_mask.size(0) == N,
-              "bind: apparel mask: expected ", N, " values (one per vertex), found ", options.apparel_mask.numel());
-    c.apparel_mask = options.apparel_mask.to(at::kBool).contiguous();
+    AMT_CHECK(options.apparel_mask.dim() == 1 && options.apparel_mask.size(0) == N, "bind: apparel mask: expected ", N,
+              " values (one per vertex), found ", options.apparel_mask.numel());
+    mask = mask_vector(options.apparel_mask.to(at::kBool));
   } else {
-    c.apparel_mask =
-        hang_apparel_pieces(c.apparel_prob.gt(0.5), c.apparel_prob, unique_edges(F_e), kFloatingPiecePinShare, &c.hung);
+    const std::vector<int32_t> weld = weld_vertices(V_e, topology_options.weld_tolerance);
+    mask = weld_consistent_mask(mask_vector(c.apparel_prob.gt(0.5)), weld);
+    const LinkedTopology before = linked_topology(V_e, F_e, mask, topology_options);
+    mask = weld_consistent_mask(mask_vector(hang_apparel_pieces(mask_tensor(mask), c.apparel_prob, before.edges,
+                                                                kFloatingPiecePinShare, &c.hung)),
+                                weld);
   }
+  const LinkedTopology topology = linked_topology(V_e, F_e, mask, topology_options);
+  const std::vector<int32_t> canon = canonical_copies(topology.weld, mask);
+  c.graph_edges = edge_tensor(topology.edges);
+  c.topology_counts =
+      at::tensor({int64_t(topology.seam_links), int64_t(topology.proximity_links), int64_t(topology.refused_links),
+                  int64_t(topology.parts), int64_t(topology.welded_parts), int64_t(topology.linked_parts)},
+                 at::kLong);
+  c.apparel_mask = mask_tensor(mask);
   c.refiner_prob = c.apparel_mask.to(at::kFloat);
   c.apparel_ids = at::nonzero(c.apparel_mask).flatten().contiguous();
   c.body_ids = at::nonzero(c.apparel_mask.logical_not()).flatten().contiguous();
-  c.body_edges = induced_edges(N, c.edges, c.body_ids);
-  c.apparel_edges = induced_edges(N, c.edges, c.apparel_ids);
+  c.body_edges = induced_edges(N, c.graph_edges, c.body_ids);
+  c.apparel_edges = induced_edges(N, c.graph_edges, c.apparel_ids);
   c.apparel_neighbors = neighbor_table(c.apparel_ids.size(0), c.apparel_edges);
+  const auto set_handles = [&] {
+    if (!bundle.local_apparel() || bundle.apparel_dynamics->options.handle_spacing <= 0 || c.num_apparel() == 0) return;
+    const ApparelRig rig = apparel_rig(c.V, c.graph_edges, c.apparel_ids, c.body_ids,
+                                       handle_options(bundle.apparel_dynamics->options.handle_spacing));
+    c.handle_rows = rig.rows;
+    c.handle_vertex_handles = canonical_rows(rig.vertex_handles, c.apparel_ids, canon);
+    c.handle_vertex_weights = canonical_rows(rig.vertex_weights, c.apparel_ids, canon);
+    c.handle_edges = rig.edges;
+  };
+  set_handles();
 
   // Skinning weights (eq. 5-7) of the body, and optionally of every vertex.
   if (options.weights.defined()) {
@@ -337,30 +391,44 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
               "bind: weights: expected (", N, ", ", J, "), found ", options.weights.sizes());
     c.vertex_weights = options.weights.to(at::kFloat).contiguous();
     c.body_weights = c.vertex_weights.index_select(0, c.body_ids);
-    c.apparel_anchor_weights = apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.edges, c.apparel_ids, c.body_ids,
-                                                          c.body_weights);
+    c.apparel_anchor_weights = canonical_rows(apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.graph_edges,
+                                                                         c.apparel_ids, c.body_ids, c.body_weights),
+                                              c.apparel_ids, canon);
     set_apparel_graph(c);
     return c;
   }
   SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
   if (c.body_ids.size(0) > 0) {
-    c.G_body = submesh_geodesics(V_e, F_e, joints_e, c.body_ids, "body");
+    c.G_body = welded_geodesics_tensor(V_e, F_e, joints_e, c.body_ids, canon, "bind: body");
     c.body_weights = skinning->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body).contiguous();
   } else {
     c.body_weights = at::zeros({0, J}, at::kFloat);
   }
-  c.apparel_anchor_weights = apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.edges, c.apparel_ids, c.body_ids,
-                                                          c.body_weights);
+  c.apparel_anchor_weights = canonical_rows(apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.graph_edges,
+                                                                       c.apparel_ids, c.body_ids, c.body_weights),
+                                            c.apparel_ids, canon);
   set_apparel_graph(c);
   if (options.all_vertex_weights) {
     // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body
     // only" and "body + apparel" skin the body identically (Table 3).
     AMT_CHECK(F.size(0) > 0, "bind: faces: the skinning predictor needs faces, found none");
-    const at::Tensor G_all = from_matrix(geodesic_distances(V_e, F_e, joints_e));
+    std::vector<int32_t> weld_all = topology.weld;  // every vertex: welded whatever the mask
+    const at::Tensor G_all =
+        welded_geodesics_tensor(V_e, F_e, joints_e, at::arange(N, at::kLong), weld_all, "bind: mesh");
     c.vertex_weights = skinning->forward(c.V, c.joints, G_all).contiguous();
     if (c.body_ids.size(0) > 0) c.vertex_weights.index_copy_(0, c.body_ids, c.body_weights);
   }
   return c;
+}
+
+TopologyCounts BoundCharacter::topology() const {
+  TopologyCounts t;
+  if (!topology_counts.defined() || topology_counts.numel() != 6) return t;
+  const at::Tensor n = topology_counts.to(at::kLong).contiguous();
+  const int64_t* v = n.data_ptr<int64_t>();
+  t.seam_links = v[0], t.proximity_links = v[1], t.refused_welds = v[2];
+  t.parts = v[3], t.welded_parts = v[4], t.linked_parts = v[5];
+  return t;
 }
 
 // === Starting a motion
@@ -409,9 +477,12 @@ at::Tensor motion_lead_in(const at::Tensor& first, const at::Tensor& rest_joints
 
 const char* pipeline_stages_name(PipelineStages stages) {
   switch (stages) {
-    case PipelineStages::kBodyOnly: return "body_only";
-    case PipelineStages::kBodyApparel: return "body_apparel";
-    case PipelineStages::kFull: return "full";
+    case PipelineStages::kBodyOnly:
+      return "body_only";
+    case PipelineStages::kBodyApparel:
+      return "body_apparel";
+    case PipelineStages::kFull:
+      return "full";
   }
   return "?";
 }
@@ -439,15 +510,20 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
     c10::InferenceMode inference;
     refiner_character_ = bundle_.refiner.ptr()->prepare(character_.V, character_.refiner_prob);
   }
+  if (source_ == ApparelSource::kNetwork && bundle_.local_apparel() && character_.handle_rows.defined()) {
+    c10::InferenceMode inference;
+    rig_ = character_.rig();
+    handle_graph_ = handle_graph(character_.apparel_graph(), rig_);
+  }
   reset(history);
 }
 
 void PipelineStepper::reset(const at::Tensor& history, const at::Tensor& history_transforms) {
   const int64_t N_a = character_.num_apparel(), J = character_.joints.size(0);
-  AMT_CHECK(history.defined() && history.dim() == 3 && history.size(0) == 3 && history.size(1) == N_a &&
-                history.size(2) == 3,
-            "pipeline: apparel history: expected (3, ", N_a, ", 3), found ",
-            (history.defined() ? history.sizes() : at::IntArrayRef{}));
+  AMT_CHECK(
+      history.defined() && history.dim() == 3 && history.size(0) == 3 && history.size(1) == N_a && history.size(2) == 3,
+      "pipeline: apparel history: expected (3, ", N_a, ", 3), found ",
+      (history.defined() ? history.sizes() : at::IntArrayRef{}));
   history_ = history.to(at::kFloat).contiguous();
   frames_ = 0;
   if (source_ == ApparelSource::kNetwork && !bundle_.local_apparel()) return;
@@ -461,14 +537,21 @@ void PipelineStepper::reset(const at::Tensor& history, const at::Tensor& history
     history_transforms_ = rest_pose_transforms(character_.joints, 3);
   }
   const at::Tensor A_rest = character_.V.index_select(0, character_.apparel_ids);
-  history_anchors_ = N_a > 0 ? linear_blend_skinning(A_rest, character_.apparel_anchor_weights, history_transforms_,
-                                                     character_.joints)
-                             : at::zeros({3, 0, 3}, at::kFloat);
+  history_anchors_ =
+      N_a > 0 ? linear_blend_skinning(A_rest, character_.apparel_anchor_weights, history_transforms_, character_.joints)
+              : at::zeros({3, 0, 3}, at::kFloat);
+  if (rig_.defined()) {
+    // The module's own states are the handles': the history's rows at the handles.
+    handle_history_ = history_.index_select(1, rig_.rows).contiguous();
+    handle_history_anchors_ = history_anchors_.index_select(1, rig_.rows).contiguous();
+  }
 }
 
 StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, StepTimes* times) {
   using Clock = std::chrono::steady_clock;
-  const auto seconds = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); };
+  const auto seconds = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+  };
   const int64_t J = character_.joints.size(0);
   AMT_CHECK(joint_transforms.dim() == 3 && joint_transforms.size(0) == J && joint_transforms.size(1) == 3 &&
                 joint_transforms.size(2) == 4,
@@ -477,9 +560,9 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
   const auto t0 = Clock::now();
   const at::Tensor T = joint_transforms.to(at::kFloat).unsqueeze(0);  // (1, J, 3, 4)
   StepOutput out;
-  const at::Tensor skinned = lbs_rest_.size(0) > 0 ? linear_blend_skinning(lbs_rest_, lbs_weights_, T, character_.joints)
-                                                         .squeeze(0)
-                                                   : at::zeros({0, 3}, at::kFloat);  // eq. (4)
+  const at::Tensor skinned = lbs_rest_.size(0) > 0
+                                 ? linear_blend_skinning(lbs_rest_, lbs_weights_, T, character_.joints).squeeze(0)
+                                 : at::zeros({0, 3}, at::kFloat);  // eq. (4)
   ++frames_;
   const auto t1 = Clock::now();
   if (stages_ == PipelineStages::kBodyOnly) {
@@ -499,12 +582,21 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
       const at::Tensor window_T = at::cat({history_transforms_, T}, 0).unsqueeze(0);                 // (1, 4, J, 3, 4)
       const at::Tensor window_S = at::cat({history_anchors_, anchor.unsqueeze(0)}, 0).unsqueeze(0);  // (1, 4, N_a, 3)
       const at::Tensor h = history_.unsqueeze(0);
-      if (source_ == ApparelSource::kNetwork) {
+      if (source_ == ApparelSource::kNetwork && rig_.defined()) {
+        // The module moves the handles; every vertex follows its handles' offsets from their anchors.
+        const at::Tensor S_h = anchor.index_select(0, rig_.rows);
+        const at::Tensor window_S_h = at::cat({handle_history_anchors_, S_h.unsqueeze(0)}, 0).unsqueeze(0);
+        const at::Tensor A_h = bundle_.apparel_dynamics.ptr()
+                                   ->step(handle_history_.unsqueeze(0), window_T, window_S_h, handle_graph_)
+                                   .squeeze(0);
+        out.A_hat = follow_handles(A_h, S_h, anchor, rig_);
+        handle_history_ = at::cat({handle_history_.narrow(0, 1, 2), A_h.unsqueeze(0)}, 0);
+        handle_history_anchors_ = window_S_h.squeeze(0).narrow(0, 1, 3);
+      } else if (source_ == ApparelSource::kNetwork) {
         out.A_hat = bundle_.apparel_dynamics.ptr()->step(h, window_T, window_S, character_.apparel_graph()).squeeze(0);
       } else {
         const double inertia = source_ == ApparelSource::kInertial ? inertia_ : 0.0;
-        out.A_hat =
-            detail_rule_step(h, window_T, window_S, character_.apparel_frame_joints, inertia).squeeze(0);
+        out.A_hat = detail_rule_step(h, window_T, window_S, character_.apparel_frame_joints, inertia).squeeze(0);
       }
       history_transforms_ = window_T.squeeze(0).narrow(0, 1, 3);
       history_anchors_ = window_S.squeeze(0).narrow(0, 1, 3);
@@ -517,8 +609,9 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
   // tile(Â, B̂) (eq. 16) by the bound index lists, which partition the mesh (as tile_apparel_body does by the mask).
   at::Tensor tiled = at::empty({character_.num_vertices(), 3}, at::kFloat);
   tiled.index_copy_(0, character_.apparel_ids, out.A_hat).index_copy_(0, character_.body_ids, out.B_hat);
-  out.V_hat = stages_ == PipelineStages::kFull ? bundle_.refiner.ptr()->forward(tiled, refiner_character_).V_hat  // eq. (16)
-                                               : tiled;
+  out.V_hat = stages_ == PipelineStages::kFull
+                  ? bundle_.refiner.ptr()->forward(tiled, refiner_character_).V_hat  // eq. (16)
+                  : tiled;
   if (times) *times = StepTimes{seconds(t0, t1), seconds(t1, t2), seconds(t2, Clock::now())};
   return out;
 }

@@ -16,6 +16,7 @@
 #include "data_tools/geometry/types.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_dynamics.h"
+#include "models/apparel_handles.h"
 #include "models/apparel_segmenter.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_predictor.h"
@@ -103,6 +104,12 @@ struct BindOptions {
   bool all_vertex_weights = false;
 };
 
+/// What the linked topology of a bound character found (BoundCharacter::topology_counts).
+struct TopologyCounts {
+  int64_t seam_links = 0, proximity_links = 0, refused_welds = 0;
+  int64_t parts = 0, welded_parts = 0, linked_parts = 0;
+};
+
 /// What hang_apparel_pieces changed: pieces pinned, and body islands made apparel.
 struct HungPieces {
   int pinned = 0, unnailed = 0;
@@ -151,15 +158,30 @@ struct BoundCharacter {
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;
+  /// graph_edges (E', 2) int64 the linked topology (linked_topology, data_tools/geometry/apparel_topology.h):
+  /// the mesh edges, a seam link from every vertex to the vertex it coincides with, and proximity links
+  /// between apparel pieces that lie within a few millimetres of each other. The parts, the apparel graph,
+  /// the attachment paths and the handles are built on it, so that coincident copies are one point.
+  at::Tensor graph_edges;
+  /// topology_counts (6) int64: seam links, proximity links, welds refused (a given mask splits the
+  /// pair), connected parts of the mesh, with seams welded, and with every link (TopologyCounts).
+  at::Tensor topology_counts;
+  /// The apparel module's handles (ApparelDynamicsOptions::handle_spacing > 0; ApparelRig,
+  /// models/apparel_handles.h); undefined for the per-vertex form.
+  at::Tensor handle_rows, handle_vertex_handles, handle_vertex_weights, handle_edges;
 
   int64_t num_vertices() const { return V.size(0); }
   int64_t num_apparel() const { return apparel_ids.size(0); }
   int64_t num_body() const { return body_ids.size(0); }
   /// The ApparelGraph of the local apparel module (neighbour table, frame joints, rest channels).
   ApparelGraph apparel_graph() const {
-    return {apparel_neighbors, apparel_frame_joints, apparel_rest_features, apparel_contact_rest,
-            apparel_contact_weights, apparel_ancestors};
+    return {apparel_neighbors,    apparel_frame_joints,    apparel_rest_features,
+            apparel_contact_rest, apparel_contact_weights, apparel_ancestors};
   }
+  /// The handles as a rig (undefined rows for the per-vertex form).
+  ApparelRig rig() const { return {handle_rows, handle_vertex_handles, handle_vertex_weights, handle_edges}; }
+  /// topology_counts by name.
+  TopologyCounts topology() const;
 };
 
 /// The share of a floating piece held by the body (hang_apparel_pieces).
@@ -297,6 +319,11 @@ class PipelineStepper {
   at::Tensor lbs_rest_, lbs_weights_;
   // Per-character constants of the refiner (kFull): its first layer on the rest mesh and the mask.
   RefinerCharacter refiner_character_;
+  // The module on handles (ApparelDynamicsOptions::handle_spacing > 0): the rig, the module's graph over
+  // the handles, and the handles' own history (3, H, 3) and its anchors.
+  ApparelRig rig_;
+  ApparelGraph handle_graph_;
+  at::Tensor handle_history_, handle_history_anchors_;
 };
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).

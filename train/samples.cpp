@@ -9,11 +9,12 @@
 #include <iomanip>
 #include <sstream>
 
+#include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/mesh.h"
-#include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/geometry/segmentation_features.h"
 #include "models/apparel_displacement.h"
 #include "models/edge_conv.h"
@@ -226,8 +227,10 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     t->apparel_ids = at::nonzero(t->apparel_mask).flatten();
     t->body_ids = at::nonzero(t->apparel_mask.logical_not()).flatten();
     t->body_weights = float_tensor(data.body_weights.data(), {N, J});
-    t->body_edges = induced_edges(N, t->edges, t->body_ids);
-    t->apparel_edges = induced_edges(N, t->edges, t->apparel_ids);
+    const LinkedTopology topology = linked_topology(data.mesh.V, data.mesh.F, data.apparel_mask);
+    t->graph_edges = edge_tensor(topology.edges);
+    t->body_edges = induced_edges(N, t->graph_edges, t->body_ids);
+    t->apparel_edges = induced_edges(N, t->graph_edges, t->apparel_ids);
     t->apparel_neighbors = neighbor_table(t->apparel_ids.size(0), t->apparel_edges);
     if (options_.kind == ModuleKind::kSegmenter) {
       const auto features_of = [&](const TriMesh& mesh) {
@@ -261,14 +264,14 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
       }
     }
     if ((options_.kind == ModuleKind::kSkinning || options_.geodesics) && t->body_ids.size(0) > 0) {
-      // The body mesh: body vertices and the faces whose three corners are body vertices.
+      // The body mesh: body vertices and the faces whose three corners are body vertices, welded as bind welds
+      // it (welded_geodesics), so that the trainer and the runtime see the same distances.
       const int64_t N_b = t->body_ids.size(0);
       const at::Tensor ids = t->body_ids.to(at::kInt).contiguous();
-      const TriMesh body = submesh(data.mesh.V, data.mesh.F,
-                                   std::vector<int32_t>(ids.data_ptr<int32_t>(), ids.data_ptr<int32_t>() + N_b));
-      AMT_CHECK(body.F.rows() > 0, shards_[c.shard], ": /characters/", c.name, ": faces: the skinning module needs ",
-                "faces between body vertices, found none");
-      const MatrixXfR G = geodesic_distances(body.V, body.F, data.skeleton.rest_joints);
+      const MatrixXfR G = welded_geodesics(data.mesh.V, data.mesh.F, data.skeleton.rest_joints,
+                                           std::vector<int32_t>(ids.data_ptr<int32_t>(), ids.data_ptr<int32_t>() + N_b),
+                                           canonical_copies(topology.weld, data.apparel_mask),
+                                           shards_[c.shard] + ": /characters/" + c.name + ": body");
       t->G_body = float_tensor(G.data(), {N_b, J});
     }
     // The anchors' weights: ground truth, or what options_.anchor_body_weights gives (a trained predictor's).
@@ -276,10 +279,19 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
                                                ? options_.anchor_body_weights(*t)
                                                : t->body_weights.index_select(0, t->body_ids);
     t->apparel_anchor = options_.apparel_anchor;
-    t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->edges, t->apparel_ids,
-                                                           t->body_ids, anchor_body_weights);
-    t->apparel_graph = apparel_graph(t->V, t->edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights, t->joints,
-                                     t->apparel_neighbors, anchor_body_weights);
+    t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->graph_edges,
+                                                           t->apparel_ids, t->body_ids, anchor_body_weights);
+    t->apparel_graph = apparel_graph(t->V, t->graph_edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights,
+                                     t->joints, t->apparel_neighbors, anchor_body_weights);
+    t->apparel_node_ids = t->apparel_ids;
+    t->apparel_node_edges = t->apparel_edges;
+    if (options_.handle_spacing > 0 && t->apparel_ids.size(0) > 0) {
+      t->apparel_rig =
+          apparel_rig(t->V, t->graph_edges, t->apparel_ids, t->body_ids, handle_options(options_.handle_spacing));
+      t->apparel_graph = handle_graph(t->apparel_graph, t->apparel_rig);
+      t->apparel_node_ids = t->apparel_ids.index_select(0, t->apparel_rig.rows);
+      t->apparel_node_edges = t->apparel_rig.edges;
+    }
     c.tensors = std::move(t);
   });
   return c.tensors;

@@ -19,6 +19,7 @@
 
 #include "data_tools/geometry/types.h"
 #include "models/apparel_dynamics.h"
+#include "models/apparel_handles.h"
 #include "train/checkpoint.h"
 
 namespace amt {
@@ -64,8 +65,16 @@ struct CharacterTensors {
   /// nearest body vertex), which skin the apparel network's anchor S^(t).
   std::string apparel_anchor;
   at::Tensor apparel_anchor_weights;
-  /// The apparel dynamics module's per-character inputs (frame joints, rest channels; its neighbour
-  /// table is apparel_neighbors).
+  /// graph_edges (E', 2) int64 the linked topology (linked_topology: mesh edges, seam links, proximity
+  /// links between apparel pieces), on which the apparel graph, attachment paths and handles are built.
+  at::Tensor graph_edges;
+  /// The apparel module's handles (SampleSourceOptions::handle_spacing > 0); undefined rows otherwise.
+  ApparelRig apparel_rig;
+  /// The apparel module's nodes: every apparel vertex, or the handles' vertices. apparel_node_ids (H) int64
+  /// vertex indices; apparel_node_edges (E_h, 2) int64 numbered by node (apparel_edges, or the rig's edges).
+  at::Tensor apparel_node_ids, apparel_node_edges;
+  /// The apparel dynamics module's per-character inputs over its nodes (frame joints, rest channels,
+  /// neighbours: apparel_neighbors, or the graph over the handles, handle_graph).
   ApparelGraph apparel_graph;
   /// G_body (N_b, J) float geodesic distances (metres) over the body mesh, the faces whose three
   /// vertices are body vertices (geodesic_distances); computed only for the skinning module, else undefined.
@@ -134,6 +143,9 @@ struct SampleSourceOptions {
   /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):
   /// "nearest" (the global form's and the earlier local checkpoints') or "attachment".
   std::string apparel_anchor = "nearest";
+  /// The apparel module's handle spacing (ApparelDynamicsOptions::handle_spacing): > 0 makes the handles of
+  /// every character (CharacterTensors::apparel_rig) and the module's graph over them.
+  double handle_spacing = 0.0;
   /// When set: the body weights (N_b, J) that skin the apparel anchors and build the apparel graph,
   /// from a character's tensors (G_body computed first); the local apparel module then trains on the
   /// anchors it meets at run time, skinned with a trained skinning predictor's weights

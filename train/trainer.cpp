@@ -205,7 +205,8 @@ SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t see
   const at::Tensor M = at::tensor({co * sx, 0.0f, -si * sx, 0.0f, 1.0f, 0.0f, si, 0.0f, co}).view({3, 3});
   in.V = at::matmul(in.V, M) * float(scale);
   if (in.features.size(1) >= 3)
-    in.features = at::cat({at::matmul(in.features.narrow(1, 0, 3), M), in.features.narrow(1, 3, in.features.size(1) - 3)}, 1);
+    in.features =
+        at::cat({at::matmul(in.features.narrow(1, 0, 3), M), in.features.narrow(1, 3, in.features.size(1) - 3)}, 1);
   return in;
 }
 
@@ -267,9 +268,15 @@ at::Tensor apparel_anchors(bool anchored, SkinningPredictor& skinning, const Cha
   at::Tensor W = c.apparel_anchor_weights;
   if (!skinning.is_empty()) {
     const at::Tensor W_b = skinning->forward(c.V.index_select(0, c.body_ids), c.joints, c.G_body);
-    W = apparel_anchor_weights_for(c.apparel_anchor, c.V, c.edges, c.apparel_ids, c.body_ids, W_b);
+    W = apparel_anchor_weights_for(c.apparel_anchor, c.V, c.graph_edges, c.apparel_ids, c.body_ids, W_b);
   }
   return linear_blend_skinning(A_rest, W, motion, c.joints);
+}
+
+// The anchors of the apparel module's nodes (CharacterTensors::apparel_node_ids) from those of every apparel
+// vertex S (..., N_a, 3): the handles' rows, or S itself.
+at::Tensor node_anchors(const CharacterTensors& c, const at::Tensor& S) {
+  return c.apparel_rig.defined() ? S.index_select(-2, c.apparel_rig.rows) : S;
 }
 
 // A seeded generator for the draws of one training window (noise, free-run length), a function of the
@@ -295,8 +302,9 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
                                            bool validating, const TrainOptions& o) {
   const CharacterTensors& c = *s.character;
   const int64_t u = validating ? longest_unroll(o.unroll) : unroll_at(o.unroll, step, o.lr_decay_steps);
-  const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);  // (F, N_a, 3)
-  const at::Tensor A_rest = c.V.index_select(0, c.apparel_ids);
+  // The module's nodes: every apparel vertex, or the handles (their vertices' ground truth).
+  const at::Tensor A = s.vertices.index_select(1, c.apparel_node_ids);  // (F, N_n, 3)
+  const at::Tensor A_rest = c.V.index_select(0, c.apparel_node_ids);
   SkinningPredictor ground_truth_weights{nullptr};
   at::Tensor initial, motion, targets;
   if (o.rest_start_fraction > 0 && s.first_frame == 0) {
@@ -307,8 +315,9 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
     const at::Tensor before = at::cat({rest_pose_transforms(c.joints, 3), lead_in}, 0);  // (3 + L, J, 3, 4)
     {
       torch::NoGradGuard no_grad;
-      const at::Tensor settled = net->rollout(A_rest.unsqueeze(0).expand({3, -1, -1}), before,
-                                              apparel_anchors(true, ground_truth_weights, c, before), c.apparel_graph);
+      const at::Tensor settled =
+          net->rollout(A_rest.unsqueeze(0).expand({3, -1, -1}), before,
+                       node_anchors(c, apparel_anchors(true, ground_truth_weights, c, before)), c.apparel_graph);
       initial = settled.narrow(0, L - 3, 3);
     }
     motion = at::cat({before.narrow(0, L, 3), s.joint_transforms.narrow(0, 0, u)}, 0);
@@ -325,9 +334,9 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
       // frames r .. r + 2 (ground truth where r < 3).
       torch::NoGradGuard no_grad;
       const at::Tensor prefix_motion = s.joint_transforms.narrow(0, 0, 3 + r);
-      const at::Tensor prefix = net->rollout(A.narrow(0, 0, 3), prefix_motion,
-                                             apparel_anchors(true, ground_truth_weights, c, prefix_motion),
-                                             c.apparel_graph);
+      const at::Tensor prefix =
+          net->rollout(A.narrow(0, 0, 3), prefix_motion,
+                       node_anchors(c, apparel_anchors(true, ground_truth_weights, c, prefix_motion)), c.apparel_graph);
       initial = at::cat({A.narrow(0, 0, 3), prefix}, 0).narrow(0, r, 3).contiguous();
     } else {
       initial = A.narrow(0, 0, 3);
@@ -342,15 +351,15 @@ std::vector<at::Tensor> local_apparel_loss(ApparelDynamicsNet& net, const Traini
       targets = at::cat({first.unsqueeze(0), targets.narrow(0, 1, u - 1)}, 0);
     }
   }
-  const at::Tensor S = apparel_anchors(true, ground_truth_weights, c, motion);
+  const at::Tensor S = node_anchors(c, apparel_anchors(true, ground_truth_weights, c, motion));
   const at::Tensor predicted = net->rollout(initial, motion, S, c.apparel_graph);
   const at::Tensor scale2 = net->target_normalizer->scale.pow(2).sum();
   const at::Tensor squared = (predicted - targets).pow(2).sum(-1);
   // The distance's gradient at 0 is undefined: a floor far below any error that matters (1e-12 of
   // the scale squared).
-  const at::Tensor detail = o.apparel_loss == "distance" ? (squared / scale2 + 1e-12).sqrt().mean()
-                                                          : squared.mean() / scale2;
-  const at::Tensor edge = edge_length_loss(predicted, A_rest, c.apparel_edges);
+  const at::Tensor detail =
+      o.apparel_loss == "distance" ? (squared / scale2 + 1e-12).sqrt().mean() : squared.mean() / scale2;
+  const at::Tensor edge = edge_length_loss(predicted, A_rest, c.apparel_node_edges);
   return {detail + o.weights.edge * edge, detail, edge};
 }
 
@@ -366,8 +375,8 @@ void prepare_normalizers(ApparelDynamicsNet& net, SampleSource& source, const Tr
   for (int k = 0; k < o.normalizer_samples; ++k) {
     const TrainingSample s = source.get(k);
     const CharacterTensors& c = *s.character;
-    const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
-    const at::Tensor S = apparel_anchors(true, ground_truth_weights, c, s.joint_transforms);
+    const at::Tensor A = s.vertices.index_select(1, c.apparel_node_ids);
+    const at::Tensor S = node_anchors(c, apparel_anchors(true, ground_truth_weights, c, s.joint_transforms));
     for (int64_t t = 3; t < A.size(0); ++t, ++windows) {
       net->observe(A.narrow(0, t - 3, 3), s.joint_transforms.narrow(0, t - 3, 4), S.narrow(0, t - 3, 4),
                    c.apparel_graph, A[t]);
@@ -449,7 +458,8 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
           return std::vector<at::Tensor>{bce, bce};  // eq. (3)
         }
         const SegmenterInput in = augmented_segmenter_input(c, seed, step);
-        const at::Tensor bce = apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight, in.weights);
+        const at::Tensor bce =
+            apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight, in.weights);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
       };
       break;
@@ -473,7 +483,9 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
     case ModuleKind::kApparel: {
       const bool local = info(0) ? is_local_apparel_options(info(0)->options_json) : o.networks.apparel_form == "local";
       if (local) {
-        ApparelDynamicsNet net(joint_network_options(info(0), path(0), o.networks.apparel_dynamics, J));
+        ApparelDynamicsOptions options = joint_network_options(info(0), path(0), o.networks.apparel_dynamics, J);
+        if (o.handle_spacing >= 0 && o.resume.empty()) options.handle_spacing = o.handle_spacing;
+        ApparelDynamicsNet net(options);
         task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
         task.terms = {"detail", "edge"};
         task.loss = [net, o](const TrainingSample& s, int64_t step, bool validating) mutable {
@@ -492,8 +504,9 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         const at::Tensor motion = s.joint_transforms.narrow(0, 3, T - 3);
         SkinningPredictor ground_truth_weights{nullptr};
         // Paper protocol: the first 3 states from ground truth, then T - 3 autoregressive steps (eq. 11).
-        const at::Tensor A_hat = net->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
-                                              apparel_anchors(net->options.skinned_anchor, ground_truth_weights, c, motion));
+        const at::Tensor A_hat =
+            net->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
+                         apparel_anchors(net->options.skinned_anchor, ground_truth_weights, c, motion));
         const LossTerms l =
             apparel_loss(A_hat, A.narrow(0, 3, T - 3), c.V.index_select(0, c.apparel_ids), c.apparel_edges, w);
         return std::vector<at::Tensor>{l.total, l.vertex, l.edge};
@@ -525,8 +538,13 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
           const at::Tensor A = s.vertices.index_select(1, c.apparel_ids);
           if (!dynamics.is_empty()) {
             // The local module measures detail vectors from the history's frames on: anchors of all T frames.
-            A_hat = dynamics->rollout(A.narrow(0, 0, 3), s.joint_transforms,
-                                      apparel_anchors(true, skinning, c, s.joint_transforms), c.apparel_graph);
+            const at::Tensor S = apparel_anchors(true, skinning, c, s.joint_transforms);
+            const at::Tensor S_n = node_anchors(c, S);
+            A_hat = dynamics->rollout(s.vertices.index_select(1, c.apparel_node_ids).narrow(0, 0, 3),
+                                      s.joint_transforms, S_n, c.apparel_graph);
+            if (c.apparel_rig.defined()) {
+              A_hat = follow_handles(A_hat, S_n.narrow(0, 3, T - 3), S.narrow(0, 3, T - 3), c.apparel_rig);
+            }
           } else {
             A_hat = apparel->rollout(A.narrow(0, 0, 3), motion, c.apparel_neighbors,
                                      apparel_anchors(apparel->options.skinned_anchor, skinning, c, motion));
@@ -722,9 +740,9 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
                                                     : is_local_apparel_options(network_infos[0].options_json));
   if (local_apparel) {
     AMT_CHECK(o.free_run >= 0, "--free-run: expected >= 0 frames, found ", o.free_run);
-    AMT_CHECK(o.window >= 3 + o.free_run + longest_unroll(o.unroll), "--window: expected >= ",
-              3 + o.free_run + longest_unroll(o.unroll), " (3 history states, --free-run ", o.free_run,
-              " and the longest unroll of --unroll ", o.unroll, "), found ", o.window);
+    AMT_CHECK(o.window >= 3 + o.free_run + longest_unroll(o.unroll),
+              "--window: expected >= ", 3 + o.free_run + longest_unroll(o.unroll), " (3 history states, --free-run ",
+              o.free_run, " and the longest unroll of --unroll ", o.unroll, "), found ", o.window);
     AMT_CHECK(o.apparel_loss == "squared" || o.apparel_loss == "distance",
               "--apparel-loss: expected squared or distance, found '", o.apparel_loss, "'");
     AMT_CHECK(o.history_noise >= 0 && o.noise_gamma >= 0 && o.noise_gamma <= 1, "--noise: expected a std >= 0 and ",
@@ -742,12 +760,14 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     ApparelDynamicsOptions a = o.networks.apparel_dynamics;
     if (!network_infos.empty()) options_from_json(network_infos[0].options_json, network_paths[0], a);
     sampling.apparel_anchor = a.anchor;
+    sampling.handle_spacing = o.handle_spacing >= 0 && o.resume.empty() ? o.handle_spacing : a.handle_spacing;
   } else if (kind == ModuleKind::kRefiner && !end_to_end && !o.apparel_checkpoint.empty()) {
     const CheckpointInfo frozen = read_checkpoint_info(o.apparel_checkpoint, ModuleKind::kApparel);
     if (is_local_apparel_options(frozen.options_json)) {
       ApparelDynamicsOptions a;
       options_from_json(frozen.options_json, o.apparel_checkpoint, a);
       sampling.apparel_anchor = a.anchor;
+      sampling.handle_spacing = a.handle_spacing;
     }
   }
   if (kind == ModuleKind::kSegmenter && !end_to_end) {
@@ -777,7 +797,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   const std::vector<std::string>& joint_names = source.joint_names();
   if (sampling.anchor_body_weights) {
     *anchor_skinning = load_frozen<SkinningPredictor, SkinningPredictorOptions>(o.skinning_checkpoint,
-                                                                               ModuleKind::kSkinning, joint_names);
+                                                                                ModuleKind::kSkinning, joint_names);
   }
 
   int64_t first_step = 0;
@@ -800,10 +820,9 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   info.joint_names = joint_names;
   info.data_fingerprint = source.fingerprint();
   if (group) {
-    group->expect_same("the run (config, data fingerprint, steps)", info.config_json + " data " +
-                                                                         info.data_fingerprint + " steps " +
-                                                                         std::to_string(first_step) + ".." +
-                                                                         std::to_string(o.steps));
+    group->expect_same("the run (config, data fingerprint, steps)",
+                       info.config_json + " data " + info.data_fingerprint + " steps " + std::to_string(first_step) +
+                           ".." + std::to_string(o.steps));
   }
   const bool writes = rank == 0;
   if (writes) {

@@ -78,6 +78,9 @@ struct TrainOptions {
   /// [0, free_run] per window), so that the loss also sees states the module drifted into, as whole-clip
   /// rollouts reach them. The window must hold 3 + free_run + the longest unroll. 0: none.
   int free_run = 0;
+  /// The local apparel module's handle spacing (ApparelDynamicsOptions::handle_spacing, metres) for a fresh
+  /// run or one started with --init (a per-vertex network fine-tuned on handles); < 0: the options' own.
+  double handle_spacing = -1.0;
   /// (run) Local apparel module: "squared" (the squared error of the detail vectors, in units of the
   /// target normaliser's scale) or "distance" (the mean Euclidean distance per vertex and frame in the
   /// same units, PMD's own measure: a window that went far off weighs linearly, not quadratically).

@@ -87,11 +87,18 @@ TEST(AnimateCommand, ApparelMaskFromTheRigTheSegmenterOrAFile) {
   };
   const test::CommandResult from_rig = test::expect_success(dir, generated("rig.glb", "rig"));
   EXPECT_NE(from_rig.out.find(", " + std::to_string(rig) + " apparel ("), std::string::npos) << from_rig.out;
-  EXPECT_NE(from_rig.out.find("mask from the rig: the dressed character's simulated apparel bones)"),
-            std::string::npos)
+  EXPECT_NE(from_rig.out.find("mask from the rig: the dressed character's simulated apparel bones)"), std::string::npos)
       << from_rig.out;
   const test::CommandResult from_model = test::expect_success(dir, generated("model.glb", "model"));
   EXPECT_NE(from_model.out.find("mask from the segmenter)"), std::string::npos) << from_model.out;
+  // auto (the default) takes the rig when the character has one, and says so; the linked topology is reported.
+  const test::CommandResult from_auto = test::expect_success(dir, generated("auto.glb", "auto"));
+  EXPECT_NE(from_auto.out.find(", " + std::to_string(rig) + " apparel ("), std::string::npos) << from_auto.out;
+  EXPECT_NE(from_auto.out.find("mask from the rig: the dressed character's simulated apparel bones (--apparel-mask "
+                               "auto: the character has a rig))"),
+            std::string::npos)
+      << from_auto.out;
+  EXPECT_NE(from_auto.out.find("topology: "), std::string::npos) << from_auto.out;
   {
     std::ofstream mask(dir / "first.txt");
     for (size_t i = 0; i < dressed.mesh.V.rows(); ++i) mask << (i < 5 ? "1 " : "0 ");

@@ -33,10 +33,11 @@ void save_fresh_checkpoint(const std::string& path, ModuleKind kind, const Net& 
 /// Writes segmenter.ckpt, skinning.ckpt, apparel.ckpt and refiner.ckpt of small networks on `joints`
 /// into `dir` (created) and returns `dir`.
 /// With `local_apparel` the apparel checkpoint is the local form (ApparelDynamicsNet, random last
-/// layer, identity normalisers), else the global form (ApparelDisplacementNet).
+/// layer, identity normalisers), else the global form (ApparelDisplacementNet); `handle_spacing` > 0 makes the
+/// local form move handles (ApparelDynamicsOptions::handle_spacing).
 inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t seed = 7,
                                      const std::vector<std::string>& joints = canonical_joint_names(),
-                                     bool local_apparel = false) {
+                                     bool local_apparel = false, double handle_spacing = 0.0) {
   std::filesystem::create_directories(dir);
   torch::manual_seed(seed);
   const int64_t J = static_cast<int64_t>(joints.size());
@@ -68,6 +69,7 @@ inline std::string write_fresh_model(const std::filesystem::path& dir, uint64_t 
     lo.num_joints = J;
     lo.edge_widths = {16, 16};
     lo.decoder_widths = {16};
+    lo.handle_spacing = handle_spacing;
     ApparelDynamicsNet net(lo);
     net->freeze_normalizers();
     {

@@ -98,9 +98,10 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   l.naive_edge_conv = true;
   l.contact = false;
   l.reach_levels = 3;
+  l.handle_spacing = 0.03125;
   const char* dynamics_json = R"({"form": "local", "num_joints": 9, "anchor": "nearest", "edge_widths": [5, 6],
       "decoder_widths": [3], "negative_slope": 0.125, "inertia": 0.25, "naive_edge_conv": true,
-      "contact": false, "reach_levels": 3})";
+      "contact": false, "reach_levels": 3, "handle_spacing": 0.03125})";
   expect_written_as(l, dynamics_json);
   ApparelDynamicsOptions l2;
   options_from_json(dynamics_json, "x.ckpt", l2);
@@ -114,6 +115,7 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_TRUE(l2.naive_edge_conv);
   EXPECT_FALSE(l2.contact);
   EXPECT_EQ(l2.reach_levels, 3);
+  EXPECT_EQ(l2.handle_spacing, 0.03125);
   // The two apparel forms are told apart by `form`, which only the local one writes.
   EXPECT_TRUE(is_local_apparel_options(options_to_json(l)));
   EXPECT_FALSE(is_local_apparel_options(options_to_json(a)));
@@ -121,8 +123,7 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(test::error_of([&] { options_from_json(R"({"form":"global"})", "x.ckpt", l2); }),
             "x.ckpt: options.form: expected \"local\" (the apparel dynamics module), found \"global\"");
   // A global-form checkpoint's options are not misread as the local form.
-  EXPECT_NE(test::error_of([&] { options_from_json(options_to_json(a), "old.ckpt", l2); })
-                .find("old.ckpt: options."),
+  EXPECT_NE(test::error_of([&] { options_from_json(options_to_json(a), "old.ckpt", l2); }).find("old.ckpt: options."),
             std::string::npos);
 
   JointRefinerOptions r;
@@ -162,7 +163,8 @@ TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
   EXPECT_EQ(ApparelSegmenterOptions{}.inputs, "welded");
   ApparelSegmenterOptions old, fragment, round;
   options_from_json(R"({"encoder_widths":[32,64,128],"decoder_widths":[64,32],"negative_slope":0.2,
-      "normalize_input":true})", "segmenter.ckpt", old);
+      "normalize_input":true})",
+                    "segmenter.ckpt", old);
   EXPECT_EQ(old.inputs, "positions");
   EXPECT_EQ(segmenter_feature_channels(old), 0);
   options_from_json(R"({"encoder_widths":[8]})", "--segmenter-options", fragment);
@@ -171,7 +173,8 @@ TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
   // The shipped segmenter of this round (shape features on the mesh as given) keeps them.
   ApparelSegmenterOptions shape;
   options_from_json(R"({"encoder_widths":[32,64,128],"decoder_widths":[64,32],"negative_slope":0.2,
-      "normalize_input":true,"inputs":"shape"})", "segmenter.ckpt", shape);
+      "normalize_input":true,"inputs":"shape"})",
+                    "segmenter.ckpt", shape);
   EXPECT_EQ(shape.inputs, "shape");
   EXPECT_EQ(segmenter_feature_channels(shape), 6);
   options_from_json(options_to_json(old), "x.ckpt", round);
@@ -181,7 +184,8 @@ TEST(ModuleOptions, SegmenterOfOldCheckpointsReadsPositionsAlone) {
     options_from_json(R"({"inputs":"colours"})", "x.ckpt", bad);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_STREQ(e.what(), "x.ckpt: options.inputs: expected \"shape\", \"welded\" or \"positions\", found \"colours\"");
+    EXPECT_STREQ(e.what(),
+                 "x.ckpt: options.inputs: expected \"shape\", \"welded\" or \"positions\", found \"colours\"");
   }
 }
 
@@ -216,6 +220,11 @@ TEST(ModuleOptions, ApparelAnchorOfOldCheckpointsIsTheNearestBodyVertex) {
   reach.reach_levels = 6;
   options_from_json(options_to_json(reach), "x.ckpt", reach2);
   EXPECT_EQ(reach2.reach_levels, 6);
+  // Handles: none (every vertex) in an old checkpoint; a spacing out of range is refused.
+  EXPECT_EQ(attachment_old.handle_spacing, 0.0);
+  ApparelDynamicsOptions handles;
+  EXPECT_EQ(test::error_of([&] { options_from_json(R"({"form":"local","handle_spacing":-0.5})", "h.ckpt", handles); }),
+            "h.ckpt: options.handle_spacing: expected 0 (every vertex) or a spacing in (0, 1] metres, found -0.5");
   ApparelDynamicsOptions bad;
   try {
     options_from_json("{\"anchor\":\"farthest\"}", "x.ckpt", bad);

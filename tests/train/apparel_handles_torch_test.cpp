@@ -1,0 +1,196 @@
+// The apparel module on handles through bind and the stepper (train/pipeline.h, models/apparel_handles.h):
+// the stepper equals the module run on the handles plus follow_handles; with a zero network it is the rule
+// on the handles, exactly; a mesh with split seams binds as one surface and its copies move as one.
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <cstring>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/lbs_torch.h"
+#include "fresh_model.h"
+#include "micro_dataset.h"
+#include "models/apparel_handles.h"
+#include "train/pipeline.h"
+
+namespace amt {
+namespace {
+
+constexpr double kSpacing = 0.05;
+
+struct Micro {
+  at::Tensor V, F, joints, mask, motion, V_gt;
+};
+
+Micro read_micro(const std::string& path, int frames) {
+  DatasetReader reader(path);
+  const CharacterData data = reader.read_character(reader.character_names().front());
+  const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
+  Micro m;
+  m.V = at::from_blob(const_cast<float*>(data.mesh.V.data()), {N, 3}, at::kFloat).clone();
+  m.F = at::from_blob(const_cast<int32_t*>(data.mesh.F.data()), {data.mesh.F.rows(), 3}, at::kInt).to(at::kLong);
+  m.joints = at::from_blob(const_cast<float*>(data.skeleton.rest_joints.data()), {J, 3}, at::kFloat).clone();
+  m.mask = at::from_blob(const_cast<uint8_t*>(data.apparel_mask.data()), {N}, at::kByte).to(at::kBool);
+  const Transforms transforms = reader.read_joint_transforms("walk0", 0, frames);
+  m.motion = at::empty({frames, J, 3, 4});
+  for (int i = 0; i < frames * J; ++i)
+    std::memcpy(m.motion.data_ptr<float>() + 12 * i, transforms[size_t(i)].data(), 12 * sizeof(float));
+  const MatrixX3f gt = reader.read_vertices("walk0", 0, frames);
+  m.V_gt = at::from_blob(const_cast<float*>(gt.data()), {frames, N, 3}, at::kFloat).clone();
+  return m;
+}
+
+struct Fixture {
+  ModelBundle bundle;
+  Micro micro;
+};
+
+Fixture fixture(const std::string& name, int frames) {
+  test::use_one_thread();
+  const std::string dir = test::write_fresh_model(test::test_directory(name + "_bundle"), 5, canonical_joint_names(),
+                                                  /*local_apparel=*/true, kSpacing);
+  const std::string data = test::test_directory(name + "_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1, {}});
+  return {load_model_bundle(dir), read_micro(data, frames)};
+}
+
+TEST(ApparelHandlesPipeline, StepperIsTheModuleOnTheHandlesFollowedByTheVertices) {
+  Fixture f = fixture("handles_step", 10);
+  const Micro& m = f.micro;
+  BindOptions options;
+  options.apparel_mask = m.mask;
+  const BoundCharacter b = bind_character(f.bundle, m.V, m.F, m.joints, options);
+  ASSERT_TRUE(b.handle_rows.defined());
+  const int64_t H = b.handle_rows.size(0), N_a = b.num_apparel();
+  EXPECT_GT(H, 1);
+  EXPECT_LT(H, N_a) << "handles are a subset";
+  EXPECT_TRUE(at::allclose(b.handle_vertex_weights.sum(1), at::ones({N_a}), 1e-6, 1e-6));
+
+  const int T = 10;
+  const at::Tensor history = m.V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
+  // The anchors as the stepper skins them: one call over the body and then the apparel.
+  const int64_t N_b = b.num_body();
+  const at::Tensor S =
+      linear_blend_skinning(at::cat({m.V.index_select(0, b.body_ids), m.V.index_select(0, b.apparel_ids)}),
+                            at::cat({b.body_weights, b.apparel_anchor_weights}), m.motion, m.joints)
+          .narrow(1, N_b, N_a)
+          .contiguous();  // (T, N_a, 3)
+  PipelineStepper stepper(f.bundle, b, history, PipelineStages::kBodyApparel);
+  stepper.reset(history, m.motion.narrow(0, 0, 3));
+  std::vector<at::Tensor> A_hat;
+  for (int t = 3; t < T; ++t) A_hat.push_back(stepper.step_detailed(m.motion[t]).A_hat.clone());
+
+  torch::NoGradGuard no_grad;
+  const ApparelRig rig = b.rig();
+  const ApparelGraph g = handle_graph(b.apparel_graph(), rig);
+  const at::Tensor S_h = S.index_select(1, rig.rows);
+  const at::Tensor A_h = f.bundle.apparel_dynamics.ptr()->rollout(history.index_select(1, rig.rows), m.motion, S_h, g);
+  const at::Tensor A_ref = follow_handles(A_h, S_h.narrow(0, 3, T - 3), S.narrow(0, 3, T - 3), rig);
+  EXPECT_TRUE(at::allclose(at::stack(A_hat), A_ref, 1e-5, 1e-6));
+  EXPECT_GT((A_ref - S.narrow(0, 3, T - 3)).abs().max().item<float>(), 1e-4f);  // the network acts
+
+  // A zero network is the rule it is built around, on the handles (the per-vertex rule differs by centimetres).
+  for (auto& p : f.bundle.apparel_dynamics->parameters()) p.zero_();
+  PipelineStepper zero(f.bundle, b, history, PipelineStages::kBodyApparel);
+  zero.reset(history, m.motion.narrow(0, 0, 3));
+  at::Tensor h = history.index_select(1, rig.rows).unsqueeze(0);
+  const double inertia = f.bundle.apparel_dynamics->options.inertia;
+  for (int t = 3; t < T; ++t) {
+    const at::Tensor got = zero.step_detailed(m.motion[t]).A_hat;
+    const at::Tensor rule_h = detail_rule_step(h, m.motion.narrow(0, t - 3, 4).unsqueeze(0),
+                                               S_h.narrow(0, t - 3, 4).unsqueeze(0), g.frame_joints, inertia);
+    const at::Tensor expected = follow_handles(rule_h.squeeze(0), S_h[t], S[t], rig);
+    // To float rounding: the stepper skins the history's anchors and the new frame's in separate calls.
+    EXPECT_LT((got - expected).abs().max().item<float>(), 1e-6f) << t;
+    h = at::cat({h.narrow(1, 1, 2), rule_h.unsqueeze(1)}, 1);
+  }
+}
+
+// The micro character with its apparel cut along a seam, as an artist's UV split leaves it: the apparel faces
+// beyond the apparel's mean x take their own copies (same positions) of every vertex they use.
+struct Seamed {
+  at::Tensor V, F, mask, source;  // source (N') the original vertex of each
+};
+
+Seamed split_apparel(const Micro& m) {
+  const int64_t N = m.V.size(0);
+  std::vector<int64_t> source;
+  for (int64_t i = 0; i < N; ++i) source.push_back(i);
+  const float cut = m.V.index_select(0, at::nonzero(m.mask).flatten()).select(1, 0).mean().item<float>();
+  at::Tensor F = m.F.clone();
+  auto f = F.accessor<int64_t, 2>();
+  const auto mask = m.mask.accessor<bool, 1>();
+  const auto V = m.V.accessor<float, 2>();
+  std::vector<int64_t> copy(static_cast<size_t>(N), -1);
+  for (int64_t k = 0; k < F.size(0); ++k) {
+    if (!(mask[f[k][0]] && mask[f[k][1]] && mask[f[k][2]])) continue;
+    if ((V[f[k][0]][0] + V[f[k][1]][0] + V[f[k][2]][0]) / 3 <= cut) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int64_t v = f[k][c];
+      if (copy[size_t(v)] < 0) {
+        source.push_back(v);
+        copy[size_t(v)] = static_cast<int64_t>(source.size()) - 1;
+      }
+      f[k][c] = copy[size_t(v)];
+    }
+  }
+  // A vertex only the copied faces used stays, in no face, where its copy is (the weld links the two).
+  const at::Tensor s = at::tensor(source, at::kLong);
+  return {m.V.index_select(0, s), F, m.mask.index_select(0, s), s};
+}
+
+// bind_character with the given apparel mask.
+BoundCharacter bind_masked(const ModelBundle& bundle, const at::Tensor& V, const at::Tensor& F, const at::Tensor& joints,
+                           const at::Tensor& mask) {
+  BindOptions options;
+  options.apparel_mask = mask;
+  return bind_character(bundle, V, F, joints, options);
+}
+
+TEST(ApparelHandlesPipeline, SplitSeamsBindAsOneSurfaceAndTheCopiesMoveAsOne) {
+  Fixture f = fixture("handles_seams", 12);
+  const Micro& m = f.micro;
+  const Seamed seamed = split_apparel(m);
+  const int64_t N = m.V.size(0), copies = seamed.V.size(0) - N;
+  ASSERT_GT(copies, 10);
+  const BoundCharacter b = bind_masked(f.bundle, seamed.V, seamed.F, m.joints, seamed.mask);
+  const BoundCharacter original = bind_masked(f.bundle, m.V, m.F, m.joints, m.mask);
+  // The micro character's capsules already touch at a few points: the cut adds its copies to those.
+  const TopologyCounts t = b.topology(), before = original.topology();
+  EXPECT_EQ(t.seam_links, before.seam_links + copies);
+  EXPECT_EQ(t.refused_welds, before.refused_welds);
+  EXPECT_GT(t.parts, before.parts);
+  EXPECT_EQ(t.welded_parts, before.welded_parts);
+  EXPECT_EQ(b.handle_rows.size(0), original.handle_rows.size(0));
+
+  // Rolled out from rest: every copy equal to the vertex it copies, to 1e-6.
+  PipelineStepper stepper(f.bundle, b, rest_apparel_history(b), PipelineStages::kBodyApparel);
+  const at::Tensor copy_ids = at::arange(N, N + copies, at::kLong);
+  const at::Tensor original_ids = seamed.source.narrow(0, N, copies);
+  float worst = 0;
+  for (int t = 0; t < 12; ++t) {
+    const at::Tensor V_hat = stepper.step(m.motion[t]);
+    worst = std::max(worst,
+                     (V_hat.index_select(0, copy_ids) - V_hat.index_select(0, original_ids)).abs().max().item<float>());
+  }
+  EXPECT_LE(worst, 1e-6f);
+}
+
+TEST(ApparelHandlesPipeline, AGivenMaskThatSplitsAWeldIsKeptAndCounted) {
+  Fixture f = fixture("handles_refused", 4);
+  const Micro& m = f.micro;
+  Seamed seamed = split_apparel(m);
+  const int64_t N = m.V.size(0);
+  seamed.mask[N] = false;  // one copy called body, its original apparel
+  const BoundCharacter b = bind_masked(f.bundle, seamed.V, seamed.F, m.joints, seamed.mask);
+  const BoundCharacter original = bind_masked(f.bundle, m.V, m.F, m.joints, m.mask);
+  EXPECT_EQ(b.topology().refused_welds, original.topology().refused_welds + 1);
+  EXPECT_FALSE(b.apparel_mask[N].item<bool>());
+}
+
+}  // namespace
+}  // namespace amt
