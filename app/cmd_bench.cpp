@@ -58,6 +58,7 @@ struct BenchOptions {
   std::vector<int> runtime_threads = {1, 2};
   std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
   bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
+  bool artist_style = false;  // runtime suite: the characters remade artist-style (artist_style.h)
   bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
   bool reference_apparel = false;  // runtime suite: the global apparel form's network timed beside the model's
   std::vector<std::string> data;  // segmenter suite: dataset shards or folders
@@ -191,6 +192,7 @@ void bench_runtime(const BenchOptions& o) {
     RuntimeBenchmarkOptions options;
     options.vertices = size;
     options.open_parts = o.open_parts;
+    options.artist_style = o.artist_style;
     options.segmenter_mask = o.segmenter_mask;
     options.threads = o.runtime_threads;
     options.repeats = o.repeats;
@@ -201,6 +203,10 @@ void bench_runtime(const BenchOptions& o) {
         "runtime   %6d vertices (%d apparel, %.0f %%; as built %d, %.0f %%), %d faces: %s; bind %.2f s (%d threads)\n",
         N, r.apparel_vertices, 100.0 * r.apparel_vertices / N, r.true_apparel_vertices,
         100.0 * r.true_apparel_vertices / N, r.faces, r.character.c_str(), r.bind_seconds, o.runtime_threads.back());
+    if (r.handles > 0)
+      std::printf("runtime   %6d vertices: the apparel module moves %d handles (%.1f apparel vertices each), up to %d "
+                  "graph neighbours each\n",
+                  N, r.handles, double(r.apparel_vertices) / r.handles, r.handle_neighbors - 1);
     for (const RuntimeThreadFigures& t : r.per_thread) {
       std::printf(
           "runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
@@ -363,6 +369,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--open-parts", options->open_parts,
                   "Runtime suite: remake the characters as real models are built, a body of many open, overlapping "
                   "parts with holes under the clothes and a hair cap (data_tools/builder/open_parts.h)");
+  bench->add_flag("--artist-style", options->artist_style,
+                  "Runtime suite: remake the characters as artists build models (UV seams with coincident copies, hair "
+                  "strips, double-sided and layered panels, open body parts; data_tools/builder/artist_style.h)");
   bench->add_flag("--segmenter-mask", options->segmenter_mask,
                   "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
                   "dressed character's");

@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "data_tools/builder/apparel.h"
+#include "data_tools/builder/artist_style.h"
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/open_parts.h"
 #include "data_tools/geometry/error.h"
@@ -20,6 +21,7 @@
 #include "infer/bind_cache_torch.h"
 #include "infer/glb_stream_writer.h"
 #include "infer/runtime_torch.h"
+#include "models/edge_conv.h"
 
 namespace amt {
 namespace {
@@ -98,8 +100,11 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
   dress.min_pieces = 2;
   dress.max_pieces = 3;
   const float body_share = o.open_parts ? kOpenPartsBodyShare : 0.7f;
-  const GeneratedBody body =
-      generate_body(sample_body_params(uint64_t(7)), std::max(kMinBodyVertices, int(o.vertices * body_share)));
+  // An artist-style remake has about 3 times the vertices of the character it remakes (copies, reverse sides,
+  // layers) before its subdivision to `vertices`.
+  const float remake_growth = o.artist_style ? 3.2f : 1.0f;
+  const GeneratedBody body = generate_body(sample_body_params(uint64_t(7)),
+                                           std::max(kMinBodyVertices, int(o.vertices * body_share / remake_growth)));
   // Open parts: the items of a typical real model (twin tails, a skirt on physics chains, a tie).
   const DressedCharacter dressed =
       o.open_parts ? dress_character_with(
@@ -115,6 +120,22 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
     mesh = std::move(open.mesh);
     mask = std::move(open.apparel_mask);
   }
+  if (o.artist_style) {
+    CharacterData source;
+    source.name = "bench";
+    source.mesh = dressed.mesh;
+    source.skeleton = body.skeleton;
+    source.apparel_mask = dressed.apparel_mask;
+    source.body_weights = dressed.body_weights;
+    ArtistStyleOptions artist;
+    artist.target_vertices = o.vertices;
+    ArtistStyleCharacter remade = artist_style_character(source, artist);
+    const MeshConstruction parts = mesh_construction(remade.character.mesh.V, remade.character.mesh.F);
+    r.character = "a dressed procedural body remade artist-style (" + std::to_string(parts.parts) + " parts, " +
+                  std::to_string(parts.welded_parts) + " once seams are welded)";
+    mesh = std::move(remade.character.mesh);
+    mask = std::move(remade.character.apparel_mask);
+  }
   r.vertices = mesh.num_vertices();
   r.faces = mesh.num_faces();
   r.true_apparel_vertices = count_ones(mask);
@@ -125,6 +146,10 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
   const std::vector<uint8_t> bound_mask_values(bound_mask.data_ptr<uint8_t>(),
                                                bound_mask.data_ptr<uint8_t>() + bound_mask.numel());
   r.apparel_vertices = count_ones(bound_mask_values);
+  if (bind.bound.handle_rows.defined()) {
+    r.handles = int(bind.bound.handle_rows.size(0));
+    r.handle_neighbors = int(neighbor_table(r.handles, bind.bound.handle_edges).size(1));
+  }
   // The reference runs on the mask the model's bind chose, so that both networks see the same apparel.
   const bool reference = o.reference_apparel && bundle.local_apparel();
   const ModelBundle reference_bundle = reference ? with_reference_apparel(bundle) : ModelBundle{};

@@ -20,6 +20,9 @@ struct RuntimeBenchmarkOptions {
   /// Remake the body of open, overlapping parts (real models' build), ~20 % apparel; else a closed
   /// dressed body with ~30 % apparel.
   bool open_parts = false;
+  /// Remake the dressed character as artists build models (data_tools/builder/artist_style.h: open body parts,
+  /// UV seams with coincident copies, hair strips, double-sided and layered panels) at about `vertices`.
+  bool artist_style = false;
   /// Bind with the segmenter's mask (as `amt animate` does by default) instead of the dressed character's.
   bool segmenter_mask = false;
   /// Thread counts measured, in order (the bind runs on the last).

@@ -13,8 +13,9 @@
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
 # the steps of each run: SEGMENTER_STEPS (30000), SKINNING_STEPS (6000, also for each Table 4
-# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000) and APPAREL_STEPS
-# (16000) for the apparel module's two stages, REFINER_STEPS (2000), and APPAREL_SKINNING: the
+# variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000), APPAREL_STEPS
+# (16000) and APPAREL_HANDLE_STEPS (10000) for the apparel module's three stages, HANDLES_DATA (the data
+# of the third, default: DATA_DIR), REFINER_STEPS (2000), and APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
 # weights).
@@ -101,8 +102,12 @@ if [[ $modules == *" apparel "* ]]; then
   # the refiner on its rollouts.
   # Two stages: many cheap one-step (teacher-forced, noised) steps, where the network learns the
   # dynamics, then the rollout curriculum from that network (--init), where it learns to stay stable
-  # on its own predictions. The one-step stage writes into <out>/apparel_one_step/.
+  # on its own predictions. The one-step stage writes into <out>/apparel_one_step/, the rollout stage into
+  # <out>/apparel_vertices/ (the per-vertex module). A third stage fine-tunes that network on handles 3 cm
+  # apart (--handle-spacing 0.03: the module moves the handles and every vertex follows them, so seams and
+  # strip bundles cannot come apart) on HANDLES_DATA (comma-separated folders; default: the data above).
   anchor_skinning=${APPAREL_SKINNING:-$out/skinning.ckpt}
+  IFS=, read -r -a handles_data <<< "${HANDLES_DATA:-$1}"
   skinning_args=()
   [[ $anchor_skinning == none ]] || skinning_args=(--skinning "$anchor_skinning")
   apparel_then_refiner() {
@@ -118,10 +123,15 @@ if [[ $modules == *" apparel "* ]]; then
     run apparel_one_step apparel "${unbatched[@]}" --batch 4 "${skinning_args[@]}" --out "$out/apparel_one_step" \
       --lr 5e-4 --steps "${APPAREL_ONE_STEP_STEPS:-30000}" --validate-every 5000 --checkpoint-every 5000 --window 13 \
       --unroll 1:1 --apparel-loss distance --apparel-form local --noise 0.001 --apparel-options "$apparel" &&
-      run apparel apparel "${base[@]}" "${skinning_args[@]}" --out "$out" --checkpoint-every 1000 --validate-every 1000 \
-        --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
+      run apparel_vertices apparel "${base[@]}" "${skinning_args[@]}" --out "$out/apparel_vertices" \
+        --checkpoint-every 1000 --validate-every 1000 --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
         --steps "${APPAREL_STEPS:-16000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
         --noise 0.001 --rest-start 0.2 &&
+      run apparel apparel --data "${handles_data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 \
+        --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out" --checkpoint-every 500 \
+        --validate-every 1000 --init "$out/apparel_vertices/apparel.ckpt" --handle-spacing 0.03 --lr 2e-4 \
+        --steps "${APPAREL_HANDLE_STEPS:-10000}" --window 63 --free-run 40 --apparel-loss distance \
+        --unroll 5:0.3,20:1 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" --edge-weight 1 \
         --refiner-options "$refiner"

@@ -156,6 +156,8 @@ struct RuntimeFigures {
   int vertices = 0, faces = 0, repeats = 0;
   /// Apparel vertices of the mask the model ran with, and of the character as built.
   int apparel_vertices = 0, true_apparel_vertices = 0;
+  /// The apparel module's handles and the widest row of its graph over them (0 for the per-vertex form).
+  int handles = 0, handle_neighbors = 0;
   double bind_seconds = std::nan(""), peak_resident_mb = std::nan("");
   std::vector<RuntimeThreadFigures> per_thread;
   /// Per-frame median at `target_threads` threads at most target_ms; bind at most target_bind_seconds.

@@ -22,6 +22,7 @@
 #include "data_tools/geometry/skeleton.h"
 #include "infer/runtime_torch.h"
 #include "train/pipeline.h"
+#include "tests/test_support.h"
 
 namespace amt {
 namespace {
@@ -59,9 +60,12 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   for (const auto& e : fs::directory_iterator(kPretrained)) {
     if (e.path().extension() == ".ckpt") shipped.insert(e.path().filename().string());
   }
+  // apparel_vertices.ckpt: the per-vertex apparel module the shipped one (on handles) was fine-tuned from, run
+  // below in place of apparel.ckpt.
+  const std::string kApparelVertices = "apparel_vertices.ckpt";
   const std::set<std::string> covered = {
-      kSegmenterCheckpoint, kSkinningCheckpoint,           kApparelCheckpoint,
-      kRefinerCheckpoint,   kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint};
+      kSegmenterCheckpoint,          kSkinningCheckpoint,       kApparelCheckpoint, kRefinerCheckpoint,
+      kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint, kApparelVertices};
   for (const std::string& name : shipped) {
     EXPECT_TRUE(covered.count(name)) << kPretrained.string() << "/" << name
                                      << ": a shipped checkpoint this test does not run: add it here";
@@ -101,6 +105,32 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   std::vector<at::Tensor> frames;
   for (int t = 0; t < 4; ++t) frames.push_back(transforms_tensor(forward_kinematics(c.body.skeleton, walk, t)));
 
+  // The shipped module moves handles; the per-vertex one every apparel vertex (the same folder with it as
+  // apparel.ckpt).
+  ASSERT_TRUE(bundle.local_apparel());
+  EXPECT_GT(bundle.apparel_dynamics->options.handle_spacing, 0.0);
+  if (shipped.count(kApparelVertices)) {
+    const fs::path per_vertex = test::temp_dir("pretrained_per_vertex");
+    for (const std::string& name : shipped) {
+      if (name == kApparelCheckpoint || name == kApparelVertices) continue;
+      fs::copy_file(kPretrained / name, per_vertex / name, fs::copy_options::overwrite_existing);
+    }
+    fs::copy_file(kPretrained / kApparelVertices, per_vertex / kApparelCheckpoint, fs::copy_options::overwrite_existing);
+    const ModelBundle vertices = load_model_bundle(per_vertex.string());
+    ASSERT_TRUE(vertices.local_apparel());
+    EXPECT_EQ(vertices.apparel_dynamics->options.handle_spacing, 0.0);
+    BindOptions options;
+    options.apparel_mask = mask;
+    const BoundCharacter bound = bind_character(vertices, V, F, joints, options);
+    EXPECT_FALSE(bound.handle_rows.defined());
+    PipelineStepper stepper(vertices, bound, rest_apparel_history(bound));
+    for (size_t t = 0; t < frames.size(); ++t) {
+      const at::Tensor out = stepper.step(frames[t]);
+      expect_finite(out, "per-vertex module, frame " + std::to_string(t));
+      EXPECT_LT((out - frames[t][0].select(1, 3)).norm(2, -1).max().item<float>(), diagonal) << "frame " << t;
+    }
+  }
+
   const std::vector<std::pair<SkinningVariant, std::string>> variants = {
       {SkinningVariant::kGeodesicAttention, kSkinningCheckpoint},
       {SkinningVariant::kNoGeodesic, kSkinningNoGeodesicCheckpoint},
@@ -121,6 +151,9 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
     ASSERT_EQ(bound.num_apparel(), Na);
     expect_weights(bound.body_weights, N - Na, J, "body weights");
     expect_weights(bound.vertex_weights, N, J, "vertex weights");
+    ASSERT_TRUE(bound.handle_rows.defined());
+    EXPECT_GT(bound.handle_rows.size(0), 0);
+    EXPECT_LT(bound.handle_rows.size(0), Na);
     // apparel.ckpt and refiner.ckpt: the full pipeline, frame by frame from the rest history.
     PipelineStepper stepper(bundle, bound, rest_apparel_history(bound));
     for (size_t t = 0; t < frames.size(); ++t) {
