@@ -815,7 +815,11 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   const bool tiled_from_full = full_spec && tiled_spec && full_spec->bind == tiled_spec->bind &&
                                full_spec->stages == PipelineStages::kFull &&
                                tiled_spec->stages == PipelineStages::kBodyApparel;
-  const auto per_character = [](const std::string& key) { return key == "skinning_baseline" || key == "full"; };
+  // Per character: skinning, the full model, and the apparel module on the ground-truth mask and weights (the
+  // path of a character with a rig, `amt animate --apparel-mask auto`), so the worst character can be judged on both.
+  const auto per_character = [](const std::string& key) {
+    return key == "skinning_baseline" || key == "full" || key == "apparel_gt";
+  };
 
   Accumulators acc;
   CharacterCaches characters;
