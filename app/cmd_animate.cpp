@@ -51,6 +51,13 @@ void add_animate_command(CLI::App& app) {
                   "a PMX model's physics-driven vertices, a glTF's chains of bones outside the canonical skeleton, a "
                   "dataset or generated character's apparel), or a "
                   "per-vertex 0/1 mask file (JSON array or text)");
+  cmd->add_option("--apparel-handles", o->apparel_handles,
+                  "Where the apparel module's handles are: auto or model (default: picked automatically along the "
+                  "apparel, as the module was trained; it measures better than the rig's bones), or rig (the rig's "
+                  "own apparel bones: a PMX model's physics-driven bones, a glTF's chain bones, a dataset rig's "
+                  "apparel bones)")
+      ->check(CLI::IsMember({"auto", "rig", "model"}))
+      ->capture_default_str();
   cmd->add_option("--apparel", o->apparel,
                   "What moves the apparel: learned (the apparel module, default) or physics (a PMX model's own rigid "
                   "bodies and joints, simulated under the motion as its artist tuned them, baked into the output)")

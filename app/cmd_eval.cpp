@@ -199,6 +199,9 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   eval->add_option("--artist-style-seed", o.artist_style_options.seed, "Seed of the artist-style remake")
       ->capture_default_str();
+  eval->add_flag("--rig-handles", o.rig_handles,
+                 "On characters whose rig has apparel bones, the methods on the ground-truth mask move the apparel "
+                 "module's handles at the rig's own bones instead of handles picked automatically");
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");
   add_threads_option(*eval);

@@ -70,7 +70,7 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash) {
 }
 
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
-                     const ModelBundle& bundle) {
+                     const ModelBundle& bundle, const ApparelBones* bones) {
   uint64_t h = kFnvOffset;
   const int64_t sizes[4] = {mesh.V.rows(), mesh.F.rows(), joints.rows(), int64_t(mask_override.size())};
   h = fnv1a64(sizes, sizeof(sizes), h);
@@ -79,6 +79,14 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
   h = fnv1a64(joints.data(), size_t(joints.size()) * sizeof(float), h);
   h = fnv1a64(mask_override.data(), mask_override.size(), h);
   for (const std::string& name : bundle.joint_names) h = fnv1a64(name.data(), name.size() + 1, h);
+  if (bones) {
+    const int64_t counts[3] = {bones->num_bones(), bones->indices.rows(), bones->indices.cols()};
+    h = fnv1a64(counts, sizeof(counts), h);
+    h = fnv1a64(bones->heads.data(), size_t(bones->heads.size()) * sizeof(float), h);
+    h = fnv1a64(bones->parents.data(), bones->parents.size() * sizeof(int32_t), h);
+    h = fnv1a64(bones->indices.data(), size_t(bones->indices.size()) * sizeof(int32_t), h);
+    h = fnv1a64(bones->weights.data(), size_t(bones->weights.size()) * sizeof(float), h);
+  }
   if (!bundle.dir.empty()) {
     for (const char* file : {kSegmenterCheckpoint, kSkinningCheckpoint, kApparelCheckpoint, kRefinerCheckpoint}) {
       h = hash_file((std::filesystem::path(bundle.dir) / file).string(), h);
@@ -183,12 +191,13 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
 }
 
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
-                       const std::vector<uint8_t>& mask_override, const std::string& cache_path) {
+                       const std::vector<uint8_t>& mask_override, const std::string& cache_path,
+                       std::shared_ptr<const ApparelBones> bones) {
   const auto start = std::chrono::steady_clock::now();
   BindResult result;
   std::string key;
   if (!cache_path.empty()) {
-    key = bind_key(mesh, joints, mask_override, bundle);
+    key = bind_key(mesh, joints, mask_override, bundle, bones.get());
     result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
     if (result.reason.rfind("damaged", 0) == 0) {
       std::cerr << "amt: " << cache_path << ": bind cache: " << result.reason << ", recomputing it\n";
@@ -201,6 +210,7 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
     const at::Tensor F = at::from_blob(const_cast<int32_t*>(mesh.F.data()), {mesh.F.rows(), 3}, at::kInt).to(at::kLong);
     const at::Tensor Jt = at::from_blob(const_cast<float*>(joints.data()), {joints.rows(), 3}, at::kFloat).clone();
     BindOptions options;
+    options.apparel_bones = std::move(bones);
     if (!mask_override.empty()) {
       AMT_CHECK(int64_t(mask_override.size()) == mesh.V.rows(), "--apparel-mask: expected ", mesh.V.rows(),
                 " values, found ", mask_override.size());

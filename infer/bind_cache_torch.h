@@ -9,6 +9,7 @@
 // one tensor per BoundCharacter field (the hung pieces' two counts as one int64 tensor), and a CRC-32 of all of
 // it; written to "<path>.tmp" and renamed.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -28,10 +29,11 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
 
 /// The key of a bind: "fnv1a64:<16 hex>" over the mesh (V #V by 3, F #F by 3), rest joints (#J by 3),
 /// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
-/// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded). Throws amt::Error when a
+/// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded), and the apparel bones given as handles (null:
+/// none; their heads, parents and vertex weights). Throws amt::Error when a
 /// checkpoint file cannot be read.
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
-                     const ModelBundle& bundle);
+                     const ModelBundle& bundle, const ApparelBones* bones = nullptr);
 
 /// Writes a bound character and its key to `path` (through "<path>.tmp"). Throws amt::Error when the
 /// file cannot be written.
@@ -53,9 +55,10 @@ struct BindResult {
 };
 
 /// Loads the bind from `cache_path` when its key matches, else binds (bind_character with the mask
-/// override, if any) and writes the cache. An empty `cache_path` disables the cache.
+/// override, if any, and `bones` as the apparel module's handles: BindOptions::apparel_bones) and writes the cache. An empty `cache_path` disables the cache.
 ///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1)
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
-                       const std::vector<uint8_t>& mask_override, const std::string& cache_path);
+                       const std::vector<uint8_t>& mask_override, const std::string& cache_path,
+                       std::shared_ptr<const ApparelBones> bones = nullptr);
 
 }  // namespace amt

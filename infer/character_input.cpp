@@ -63,7 +63,7 @@ bool body_part_name(std::string name) {
 // from the mapped skeleton: hair, skirt and cape chains, VRM's secondary bones. `bones` receives the
 // number of such bones.
 std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRest& rest, const SparseWeights& w,
-                                        int* bones) {
+                                        int* bones, std::vector<uint8_t>* chain_bones) {
   const int J = file.num_joints();
   std::vector<uint8_t> candidate(static_cast<size_t>(J), 0), chain(static_cast<size_t>(J), 0);
   const std::set<std::string> extra(rest.extra.begin(), rest.extra.end());
@@ -74,6 +74,7 @@ std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRes
     if (candidate[j] && p >= 0 && candidate[p]) chain[j] = chain[p] = 1;
   }
   for (int j = 0; j < J; ++j) *bones += chain[j];
+  *chain_bones = chain;
   std::vector<uint8_t> mask(static_cast<size_t>(w.num_vertices()), 0);
   for (int i = 0; i < w.num_vertices(); ++i) {
     for (int k = 0; k < kMaxInfluences; ++k) {
@@ -82,6 +83,17 @@ std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRes
     }
   }
   return mask;
+}
+
+// The bones flagged in `keep` of a file's skeleton (B bones: names, parents, rest heads) with its sparse skin
+// weights, as the character's apparel bones; null when none is flagged.
+std::shared_ptr<const ApparelBones> file_apparel_bones(const std::vector<std::string>& names,
+                                                       const std::vector<int32_t>& parents, const MatrixX3f& heads,
+                                                       const SparseWeights& w, const std::vector<uint8_t>& keep) {
+  if (std::find(keep.begin(), keep.end(), uint8_t(1)) == keep.end()) return nullptr;
+  const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> indices = w.indices;
+  const MatrixXfR weights = w.weights;
+  return std::make_shared<const ApparelBones>(select_apparel_bones(names, heads, parents, indices, weights, keep));
 }
 
 }  // namespace
@@ -125,6 +137,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.apparel_mask = std::move(data.apparel_mask);
     c.rig_apparel_mask = c.apparel_mask;
     c.rig_apparel = "the dataset's ground truth";
+    if (std::optional<ApparelBones> bones = rig_apparel_bones(data))
+      c.rig_bones = std::make_shared<const ApparelBones>(std::move(*bones));
     c.dataset = ds->first;
     c.dataset_character = ds->second;
   } else {
@@ -167,6 +181,17 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
         c.rig_apparel_mask = std::move(rig);
         c.rig_apparel = "PMX physics: " + std::to_string(driven) + " vertices on bones that " +
                         std::to_string(simulated) + " simulated rigid bodies drive";
+        const int B = static_cast<int>(model.bones.size());
+        std::vector<std::string> names(static_cast<size_t>(B));
+        std::vector<int32_t> parents(static_cast<size_t>(B));
+        MatrixX3f heads(B, 3);
+        for (int b = 0; b < B; ++b) {
+          names[b] = model.bones[b].name;
+          parents[b] = model.bones[b].parent;
+          heads.row(b) = model.bones[b].position.transpose();
+        }
+        c.rig_bones =
+            file_apparel_bones(names, parents, heads, pmx_skin_weights(model), pmx_physics_driven_bones(model));
       }
       c.file_skeleton = pmx_skeleton(model);  // names made unique: PMX allows repeats
       AMT_CHECK(!model.bones.empty() || !spec.joints.empty(), path,
@@ -189,9 +214,13 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
   c.skeleton = c.rest.skeleton;
   if (gltf_weights.num_vertices() == c.mesh.num_vertices()) {
     int chain_bones = 0;
-    std::vector<uint8_t> rig = chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, &chain_bones);
+    std::vector<uint8_t> chain;
+    std::vector<uint8_t> rig = chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, &chain_bones, &chain);
     const auto count = std::count(rig.begin(), rig.end(), uint8_t(1));
     if (count > 0) {
+      MatrixX3f heads(c.file_skeleton.num_joints(), 3);
+      for (int j = 0; j < c.file_skeleton.num_joints(); ++j) heads.row(j) = c.file_skeleton.rest_joints.row(j);
+      c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain);
       c.rig_apparel_mask = std::move(rig);
       c.rig_apparel = "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +
                       " bones outside the canonical map that hang in chains from it";

@@ -4,12 +4,14 @@
 // canonical (issue 6, item 3): a canonical joint that the file lacks (no collars, two spine joints
 // instead of three, no foot) is placed on the line between its mapped neighbours; the file's extra
 // joints (twist, finger, apparel bones) are carried along by their nearest mapped ancestor.
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "data_tools/formats/canonical_rest.h"
 #include "data_tools/formats/joint_map.h"
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/skeleton.h"
 
@@ -42,6 +44,7 @@ struct CharacterSpec {
 ///                   skinned glTF's vertices on chains of bones outside the canonical map (not fingers, toes,
 ///                   eyes, jaw, tongue, twist or roll bones by name), a dataset character's ground truth, a
 ///                   generated character's apparel; `rig_apparel` says where it came from
+///   rig_bones       the rig's own apparel bones (below)
 ///   dataset, dataset_character  the dataset file and character name ("" otherwise)
 struct RuntimeCharacter {
   std::string name;
@@ -52,6 +55,10 @@ struct RuntimeCharacter {
   std::vector<uint8_t> apparel_mask;
   std::vector<uint8_t> rig_apparel_mask;
   std::string rig_apparel;
+  /// The rig's own apparel bones with their vertices' weights (`--apparel-handles rig`): a PMX model's
+  /// physics-driven bones, a skinned glTF's chain bones, a dataset character's rig bones that are not joints of its
+  /// skeleton (rig_apparel_bones); null when the character's rig names none (a generated character: none kept).
+  std::shared_ptr<const ApparelBones> rig_bones;
   std::string dataset, dataset_character;
 };
 

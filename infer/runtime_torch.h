@@ -92,6 +92,9 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 ///   apparel_mask  where the apparel mask comes from: "auto" or empty (the rig when the character has one, else
 ///               the segmenter), "model" (the segmenter), "rig" (the character's own rig:
 ///               RuntimeCharacter::rig_apparel_mask), or a mask file (read_apparel_mask)
+///   apparel_handles  where the apparel module's handles are (a module on handles): "auto" or "model" (picked
+///               automatically at the module's spacing, as the module was trained: it measures better than the
+///               rig's bones), or "rig" (the rig's own apparel bones: RuntimeCharacter::rig_bones)
 ///   apparel     what moves the apparel: "learned" or empty (the apparel module of the model), or "physics" (a PMX
 ///               model's own rigid bodies and joints, infer/pmx_physics_player.h: no network, no bind; the whole
 ///               mesh skinned by the model's own rig; not with html_dir)
@@ -103,6 +106,7 @@ struct AnimateOptions {
   std::string bind_path;
   std::string apparel_mask;
   std::string apparel = "learned";
+  std::string apparel_handles = "auto";
   std::string html_dir, viewer_dir;
   PlaybackOptions playback;
   bool resolve_penetration = true;
@@ -129,6 +133,8 @@ struct AnimateSummary {
   /// handles (0: it moves every apparel vertex).
   TopologyCounts topology;
   int64_t handles = 0;
+  /// Where the handles are: "picked automatically ..." or "the rig's N apparel bones ..." (AnimateOptions::apparel_handles).
+  std::string handle_source;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.

@@ -18,20 +18,12 @@ HandleOptions handle_options(double spacing) {
   return o;
 }
 
-ApparelRig apparel_rig(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
-                       const at::Tensor& body_ids, const HandleOptions& options) {
-  torch::NoGradGuard no_grad;
-  const at::Tensor Vc = V.to(at::kFloat).contiguous();
-  const MatrixX3f V_e = Eigen::Map<const MatrixX3f>(Vc.data_ptr<float>(), Vc.size(0), 3);
-  const at::Tensor E = edges.to(at::kInt).contiguous();
-  const MatrixX2i E_e = Eigen::Map<const MatrixX2i>(E.data_ptr<int32_t>(), E.size(0), 2);
-  const at::Tensor ids = apparel_ids.to(at::kInt).contiguous();
-  const std::vector<int32_t> apparel(ids.data_ptr<int32_t>(), ids.data_ptr<int32_t>() + ids.numel());
-  const at::Tensor hang = attachment_distances(V, edges, apparel_ids, body_ids).contiguous();
-  const std::vector<float> distance(hang.data_ptr<float>(), hang.data_ptr<float>() + hang.numel());
-  const ApparelHandles h = apparel_handles(V_e, E_e, apparel, distance, options);
+namespace {
+
+// The tensors of a rig of handles over N_a apparel vertices.
+ApparelRig rig_tensors(const ApparelHandles& h, int64_t N_a) {
   ApparelRig rig;
-  const int64_t N_a = apparel_ids.size(0), K = h.vertex_handles.cols();
+  const int64_t K = h.vertex_handles.cols();
   rig.rows = at::tensor(std::vector<int64_t>(h.handles.begin(), h.handles.end()), at::kLong);
   rig.vertex_handles =
       at::from_blob(const_cast<int32_t*>(h.vertex_handles.data()), {N_a, K}, at::kInt).to(at::kLong).contiguous();
@@ -42,6 +34,34 @@ ApparelRig apparel_rig(const at::Tensor& V, const at::Tensor& edges, const at::T
                         .contiguous()
                   : at::zeros({0, 2}, at::kLong);
   return rig;
+}
+
+MatrixX3f eigen_vertices(const at::Tensor& V) {
+  const at::Tensor Vc = V.to(at::kFloat).contiguous();
+  return Eigen::Map<const MatrixX3f>(Vc.data_ptr<float>(), Vc.size(0), 3);
+}
+
+std::vector<int32_t> id_list(const at::Tensor& ids) {
+  const at::Tensor c = ids.to(at::kInt).contiguous();
+  return std::vector<int32_t>(c.data_ptr<int32_t>(), c.data_ptr<int32_t>() + c.numel());
+}
+
+}  // namespace
+
+ApparelRig apparel_rig(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
+                       const at::Tensor& body_ids, const HandleOptions& options) {
+  torch::NoGradGuard no_grad;
+  const at::Tensor E = edges.to(at::kInt).contiguous();
+  const MatrixX2i E_e = Eigen::Map<const MatrixX2i>(E.data_ptr<int32_t>(), E.size(0), 2);
+  const at::Tensor hang = attachment_distances(V, edges, apparel_ids, body_ids).contiguous();
+  const std::vector<float> distance(hang.data_ptr<float>(), hang.data_ptr<float>() + hang.numel());
+  return rig_tensors(apparel_handles(eigen_vertices(V), E_e, id_list(apparel_ids), distance, options),
+                     apparel_ids.size(0));
+}
+
+ApparelRig bone_rig(const at::Tensor& V, const at::Tensor& apparel_ids, const ApparelBones& bones, int max_handles) {
+  torch::NoGradGuard no_grad;
+  return rig_tensors(bone_handles(eigen_vertices(V), id_list(apparel_ids), bones, max_handles), apparel_ids.size(0));
 }
 
 ApparelGraph handle_graph(const ApparelGraph& g, const ApparelRig& rig) {

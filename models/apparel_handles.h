@@ -33,6 +33,10 @@ HandleOptions handle_options(double spacing);
 ApparelRig apparel_rig(const at::Tensor& V, const at::Tensor& edges, const at::Tensor& apparel_ids,
                        const at::Tensor& body_ids, const HandleOptions& options);
 
+/// The rig of the apparel vertices apparel_ids (N_a) of V (N, 3) from the character's own apparel bones
+/// (bone_handles: a handle per bone, at the vertex it weighs most; the vertices' own skin weights).
+ApparelRig bone_rig(const at::Tensor& V, const at::Tensor& apparel_ids, const ApparelBones& bones, int max_handles = 4);
+
 /// The module's graph over the handles: the rows of the per-vertex graph g at the handles, the
 /// neighbour table of the rig's edges, and ancestors mapped to each ancestor vertex's nearest handle.
 ApparelGraph handle_graph(const ApparelGraph& g, const ApparelRig& rig);

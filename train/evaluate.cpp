@@ -197,6 +197,9 @@ struct CharacterCache {
   // The artist-style remake the arrays above are of (EvaluateOptions::artist_style), whose map remakes the ground
   // truth read from the dataset; empty for a character evaluated as built.
   std::optional<ArtistStyleCharacter> remake;
+  // The rig's apparel bones as the handles of the binds on the ground-truth mask (EvaluateOptions::rig_handles);
+  // null otherwise.
+  std::shared_ptr<const ApparelBones> bones;
   MatrixX2i pairs;      // coincident_pairs of the rest mesh: the seam gap's pairs
   MatrixX2i apparel_E;  // apparel_edges of E: tearing and apparel ELS
   MeshConstruction construction;
@@ -252,10 +255,14 @@ void score_open_parts(const ModelBundle& bundle, CharacterCache& c) {
 // kHeldOutArtistStyle.
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
                                                const std::string& subset, bool penetration,
-                                               const ArtistStyleOptions& artist_style = {}) {
+                                               const ArtistStyleOptions& artist_style = {},
+                                               bool rig_handles = false) {
   auto c = std::make_unique<CharacterCache>();
   if (subset == kHeldOutArtistStyle) c->remake = artist_style_character(reader.read_character(name), artist_style);
   const CharacterData data = c->remake ? c->remake->character : reader.read_character(name);
+  if (rig_handles)
+    if (std::optional<ApparelBones> bones = rig_apparel_bones(data))
+      c->bones = std::make_shared<const ApparelBones>(std::move(*bones));
   c->name = name;
   c->subset = subset;
   const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
@@ -286,12 +293,13 @@ struct CharacterCaches {
   std::vector<std::unique_ptr<CharacterCache>> loaded;  // in the order first met
   std::map<std::pair<int, std::string>, CharacterCache*> index;
   ArtistStyleOptions artist_style;  // how the characters of kHeldOutArtistStyle are remade
+  bool rig_handles = false;         // EvaluateOptions::rig_handles
 
   // The character of `clip`, read from `reader` (the clip's shard) on first use.
   CharacterCache& of(const DatasetReader& reader, const EvalClip& clip, bool penetration) {
     CharacterCache*& c = index[{clip.shard, clip.info.character}];
     if (!c) {
-      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration, artist_style));
+      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration, artist_style, rig_handles));
       c = loaded.back().get();
     }
     return *c;
@@ -408,10 +416,12 @@ BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
   if (bind == "gt_weights") {
     o.apparel_mask = c.gt_mask;
     o.weights = c.gt_weights;
+    o.apparel_bones = c.bones;
   } else if (bind == "predicted") {
     o.all_vertex_weights = true;
   } else {
     o.apparel_mask = c.gt_mask;
+    o.apparel_bones = c.bones;
     if (bind == "gt_mask_no_geodesic") o.skinning_variant = SkinningVariant::kNoGeodesic;
     if (bind == "gt_mask_sorted") o.skinning_variant = SkinningVariant::kSortByGeodesic;
   }
@@ -824,6 +834,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   Accumulators acc;
   CharacterCaches characters;
   characters.artist_style = options.artist_style_options;
+  characters.rig_handles = options.rig_handles;
   int short_clips = 0;
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   progress.update(0);
@@ -1050,7 +1061,8 @@ std::string evaluation_json(const EvaluationResult& result) {
                   {"max_clips", result.options.max_clips},
                   {"penetration", result.options.penetration},
                   {"lead_in_frames", kDefaultLeadInFrames},
-                  {"artist_style", result.options.artist_style}};
+                  {"artist_style", result.options.artist_style},
+                  {"rig_handles", result.options.rig_handles}};
   if (result.options.artist_style) {
     const ArtistStyleOptions& a = result.options.artist_style_options;
     j["artist_style"] = {{"subset", kHeldOutArtistStyle},

@@ -73,6 +73,10 @@ struct EvaluateOptions {
   /// method binds the remade mesh, the ground truth is remade by remake_frames) instead of as built.
   bool artist_style = false;
   ArtistStyleOptions artist_style_options;
+  /// On characters whose rig has apparel bones (rig_apparel_bones), the binds on the ground-truth mask (the rig's
+  /// mask, as `amt animate` uses it by default) move the apparel module's handles at the rig's bones (bone_rig)
+  /// instead of handles picked automatically.
+  bool rig_handles = false;
 };
 
 // === Results

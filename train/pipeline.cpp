@@ -376,8 +376,13 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   c.apparel_neighbors = neighbor_table(c.apparel_ids.size(0), c.apparel_edges);
   const auto set_handles = [&] {
     if (!bundle.local_apparel() || bundle.apparel_dynamics->options.handle_spacing <= 0 || c.num_apparel() == 0) return;
-    const ApparelRig rig = apparel_rig(c.V, c.graph_edges, c.apparel_ids, c.body_ids,
-                                       handle_options(bundle.apparel_dynamics->options.handle_spacing));
+    if (options.apparel_bones)
+      AMT_CHECK(options.apparel_bones->indices.rows() == N, "bind: apparel bones: expected skin weights of ", N,
+                " vertices, found ", options.apparel_bones->indices.rows());
+    const ApparelRig rig = options.apparel_bones
+                               ? bone_rig(c.V, c.apparel_ids, *options.apparel_bones)
+                               : apparel_rig(c.V, c.graph_edges, c.apparel_ids, c.body_ids,
+                                             handle_options(bundle.apparel_dynamics->options.handle_spacing));
     c.handle_rows = rig.rows;
     c.handle_vertex_handles = canonical_rows(rig.vertex_handles, c.apparel_ids, canon);
     c.handle_vertex_weights = canonical_rows(rig.vertex_weights, c.apparel_ids, canon);

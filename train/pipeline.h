@@ -10,6 +10,7 @@
 #include <ATen/core/Tensor.h>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -102,6 +103,9 @@ struct BindOptions {
   /// only" ablation and the skinned start of a rollout need: geodesics over the whole mesh and the
   /// skinning predictor on all N vertices. Ignored when `weights` is given (it fills vertex_weights).
   bool all_vertex_weights = false;
+  /// The character's own apparel bones (N vertex rows) as the apparel module's handles (bone_rig), when the
+  /// module moves handles; null: handles picked automatically (apparel_rig at the module's spacing).
+  std::shared_ptr<const ApparelBones> apparel_bones;
 };
 
 /// What the linked topology of a bound character found (BoundCharacter::topology_counts).

@@ -910,4 +910,19 @@ MatrixX3f DatasetReader::read_vertices(const std::string& clip, int first_frame,
   return out;
 }
 
+std::optional<ApparelBones> rig_apparel_bones(const CharacterData& character) {
+  if (!character.rig) return std::nullopt;
+  const Rig& rig = *character.rig;
+  const std::unordered_set<std::string> joints(character.skeleton.names.begin(), character.skeleton.names.end());
+  const int B = rig.num_bones();
+  std::vector<uint8_t> keep(static_cast<size_t>(B), 0);
+  MatrixX3f heads(B, 3);
+  for (int b = 0; b < B; ++b) {
+    keep[b] = joints.count(rig.bone_names[b]) == 0;
+    heads.row(b) = rig.rest_transforms[b].col(3).transpose();
+  }
+  if (std::find(keep.begin(), keep.end(), uint8_t(1)) == keep.end()) return std::nullopt;
+  return select_apparel_bones(rig.bone_names, heads, rig.bone_parents, rig.skin_indices, rig.skin_weights, keep);
+}
+
 }  // namespace amt

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/skeleton.h"
 #include "data_tools/geometry/types.h"
@@ -118,6 +119,11 @@ struct ClipInfo {
   int num_frames = 0;
   GroundTruth ground_truth = GroundTruth::kVertices;
 };
+
+/// The apparel bones of a character's simulation rig (its bones that are not joints of its skeleton, by name:
+/// the builder's hair, skirt and cape chains, a PMX dataset's physics-driven bones), as the apparel module's
+/// handles (bone_handles). std::nullopt when the character has no rig or its rig has no such bone.
+std::optional<ApparelBones> rig_apparel_bones(const CharacterData& character);
 
 // === Writer
 

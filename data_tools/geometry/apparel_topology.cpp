@@ -295,3 +295,158 @@ ApparelHandles apparel_handles(const MatrixX3f& V, const MatrixX2i& edges, const
 }
 
 }  // namespace amt
+
+// === The rig's own bones as handles
+
+namespace amt {
+
+ApparelBones select_apparel_bones(const std::vector<std::string>& names, const MatrixX3f& heads,
+                                  const std::vector<int32_t>& parents,
+                                  const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                                  const MatrixXfR& weights, const std::vector<uint8_t>& keep) {
+  const int B = static_cast<int>(names.size());
+  AMT_CHECK(heads.rows() == B && static_cast<int>(parents.size()) == B && static_cast<int>(keep.size()) == B,
+            "apparel bones: expected ", B, " heads, parents and flags, found ", heads.rows(), ", ", parents.size(),
+            " and ", keep.size());
+  AMT_CHECK(indices.rows() == weights.rows() && indices.cols() == weights.cols(),
+            "apparel bones: expected skin indices and weights of one shape, found (", indices.rows(), ", ",
+            indices.cols(), ") and (", weights.rows(), ", ", weights.cols(), ")");
+  std::vector<int32_t> renumber(static_cast<size_t>(B), -1);
+  ApparelBones out;
+  for (int b = 0; b < B; ++b) {
+    if (!keep[b]) continue;
+    renumber[b] = out.num_bones();
+    out.names.push_back(names[b]);
+  }
+  out.heads.resize(out.num_bones(), 3);
+  for (int b = 0; b < B; ++b) {
+    if (renumber[b] < 0) continue;
+    out.heads.row(renumber[b]) = heads.row(b);
+    int p = parents[b];
+    for (int guard = 0; p >= 0 && p < B && renumber[p] < 0 && guard < B; ++guard) p = parents[p];
+    out.parents.push_back(p >= 0 && p < B ? renumber[p] : -1);
+  }
+  out.indices = indices;
+  out.weights = weights;
+  for (Eigen::Index i = 0; i < indices.rows(); ++i) {
+    for (Eigen::Index k = 0; k < indices.cols(); ++k) {
+      const int b = indices(i, k);
+      const bool kept = b >= 0 && b < B && renumber[b] >= 0 && weights(i, k) > 0.0f;
+      out.indices(i, k) = kept ? renumber[b] : -1;
+      if (!kept) out.weights(i, k) = 0.0f;
+    }
+  }
+  return out;
+}
+
+ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& apparel, const ApparelBones& bones,
+                            int max_handles) {
+  const int B = bones.num_bones(), N_a = static_cast<int>(apparel.size());
+  AMT_CHECK(max_handles >= 1, "bone handles: max_handles: expected at least 1, found ", max_handles);
+  AMT_CHECK(bones.heads.rows() == B && static_cast<int>(bones.parents.size()) == B,
+            "bone handles: expected ", B, " heads and parents, found ", bones.heads.rows(), " and ", bones.parents.size());
+  AMT_CHECK(bones.indices.rows() == V.rows() && bones.weights.rows() == V.rows() &&
+                bones.indices.cols() == bones.weights.cols(),
+            "bone handles: expected skin indices and weights of ", V.rows(), " vertices, found ", bones.indices.rows(),
+            " and ", bones.weights.rows());
+  for (const int32_t v : apparel) AMT_CHECK(v >= 0 && v < V.rows(), "bone handles: apparel vertex ", v, " out of range");
+  // Each bone's heaviest apparel vertices, heaviest first, then nearest its head.
+  struct Candidate {
+    float weight, distance;
+    int32_t row;
+  };
+  std::vector<std::vector<Candidate>> candidates(static_cast<size_t>(B));
+  for (int r = 0; r < N_a; ++r) {
+    const int v = apparel[r];
+    for (Eigen::Index k = 0; k < bones.indices.cols(); ++k) {
+      const int b = bones.indices(v, k);
+      const float w = bones.weights(v, k);
+      if (b < 0 || b >= B || !(w > 0.0f)) continue;
+      candidates[b].push_back({w, (V.row(v) - bones.heads.row(b)).norm(), r});
+    }
+  }
+  std::vector<int32_t> handle_of_bone(static_cast<size_t>(B), -1);
+  std::vector<uint8_t> taken(static_cast<size_t>(N_a), 0);
+  ApparelHandles out;
+  for (int b = 0; b < B; ++b) {
+    auto& list = candidates[b];
+    if (list.empty()) continue;  // a bone that weighs no apparel vertex moves nothing
+    std::sort(list.begin(), list.end(), [](const Candidate& x, const Candidate& y) {
+      if (x.weight != y.weight) return x.weight > y.weight;
+      if (x.distance != y.distance) return x.distance < y.distance;
+      return x.row < y.row;
+    });
+    for (const Candidate& c : list) {
+      if (taken[c.row]) continue;
+      taken[c.row] = 1;
+      handle_of_bone[b] = out.num_handles();
+      out.handles.push_back(c.row);
+      break;
+    }
+  }
+  // A bone whose every vertex is already a handle joins the handle of the vertex it weighs most.
+  std::vector<int32_t> handle_at_row(static_cast<size_t>(N_a), -1);
+  for (int h = 0; h < out.num_handles(); ++h) handle_at_row[out.handles[h]] = h;
+  for (int b = 0; b < B; ++b)
+    if (handle_of_bone[b] < 0 && !candidates[b].empty()) handle_of_bone[b] = handle_at_row[candidates[b][0].row];
+  const int H = out.num_handles();
+  AMT_CHECK(H > 0, "bone handles: none of the ", B, " apparel bones weighs any of the ", N_a, " apparel vertices");
+
+  const int K = max_handles;
+  out.vertex_handles.setZero(N_a, K);
+  out.vertex_weights.setZero(N_a, K);
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  for (int r = 0; r < N_a; ++r) {
+    const int v = apparel[r];
+    std::vector<std::pair<float, int32_t>> w;  // (weight, handle), merged per handle
+    for (Eigen::Index k = 0; k < bones.indices.cols(); ++k) {
+      const int b = bones.indices(v, k);
+      if (b < 0 || b >= B || !(bones.weights(v, k) > 0.0f)) continue;
+      const int h = handle_of_bone[b];
+      auto it = std::find_if(w.begin(), w.end(), [h](const auto& e) { return e.second == h; });
+      if (it == w.end()) w.push_back({bones.weights(v, k), h});
+      else it->first += bones.weights(v, k);
+    }
+    if (w.empty()) {  // outside the rig's apparel: the nearest handle at rest
+      int best = 0;
+      float best_d = std::numeric_limits<float>::infinity();
+      for (int h = 0; h < H; ++h) {
+        const float d = (V.row(v) - V.row(apparel[out.handles[h]])).squaredNorm();
+        if (d < best_d) best_d = d, best = h;
+      }
+      w.push_back({1.0f, best});
+    }
+    std::stable_sort(w.begin(), w.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+    if (static_cast<int>(w.size()) > K) w.resize(static_cast<size_t>(K));
+    float sum = 0.0f;
+    for (const auto& e : w) sum += e.first;
+    for (int k = 0; k < K; ++k) {
+      out.vertex_handles(r, k) = k < static_cast<int>(w.size()) ? w[k].second : w[0].second;
+      out.vertex_weights(r, k) = k < static_cast<int>(w.size()) ? w[k].first / sum : 0.0f;
+    }
+    for (size_t a = 0; a < w.size(); ++a)
+      for (size_t c = a + 1; c < w.size(); ++c)
+        edges.push_back({std::min(w[a].second, w[c].second), std::max(w[a].second, w[c].second)});
+  }
+  for (int b = 0; b < B; ++b) {
+    const int p = bones.parents[b];
+    int hp = -1;
+    for (int q = p, guard = 0; q >= 0 && q < B && guard < B; q = bones.parents[q], ++guard) {
+      if (handle_of_bone[q] >= 0) {
+        hp = handle_of_bone[q];
+        break;
+      }
+    }
+    const int hb = handle_of_bone[b];
+    if (hb >= 0 && hp >= 0 && hb != hp) edges.push_back({std::min(hb, hp), std::max(hb, hp)});
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  edges.erase(std::remove_if(edges.begin(), edges.end(), [](const auto& e) { return e.first == e.second; }),
+              edges.end());
+  out.handle_edges.resize(static_cast<Eigen::Index>(edges.size()), 2);
+  for (size_t e = 0; e < edges.size(); ++e) out.handle_edges.row(static_cast<Eigen::Index>(e)) << edges[e].first, edges[e].second;
+  return out;
+}
+
+}  // namespace amt

@@ -116,4 +116,42 @@ struct ApparelHandles {
 ApparelHandles apparel_handles(const MatrixX3f& V, const MatrixX2i& edges, const std::vector<int32_t>& apparel,
                                const std::vector<float>& hang_distance, const HandleOptions& options = {});
 
+// === The rig's own bones as handles
+
+/// A character's own apparel bones, the bones its artist (or the builder's simulation) moves the apparel with:
+/// a PMX model's physics-driven bones, a glTF's chains outside the canonical skeleton, a dataset rig's bones
+/// that are not joints of its skeleton.
+///   names     B bone names
+///   heads     (B, 3) rest positions of the bones, metres, in the mesh's frame
+///   parents   B parent indices among these bones, -1 for a chain's first bone
+///   indices, weights  (N, K) per mesh vertex: bone indices among these bones (-1: none) and the vertex's own
+///             skin weights on them (not renormalised: a vertex half on a body bone has 0.5 here)
+struct ApparelBones {
+  std::vector<std::string> names;
+  MatrixX3f heads;
+  std::vector<int32_t> parents;
+  Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> indices;
+  MatrixXfR weights;
+  int num_bones() const { return static_cast<int>(names.size()); }
+};
+
+/// The bones `keep` (B_all entries, 1 = apparel bone) of a rig of B_all bones (names, rest heads (B_all, 3), parents
+/// in [-1, B_all)), with per-vertex influences (N, K) over all of them: the kept bones renumbered, parents mapped to
+/// the nearest kept ancestor, influences on other bones dropped. Throws amt::Error on inputs of the wrong size.
+ApparelBones select_apparel_bones(const std::vector<std::string>& names, const MatrixX3f& heads,
+                                  const std::vector<int32_t>& parents,
+                                  const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                                  const MatrixXfR& weights, const std::vector<uint8_t>& keep);
+
+/// Handles of the apparel vertices `apparel` (ascending mesh indices) of V from the character's own bones: one
+/// handle per bone that weighs an apparel vertex, at the apparel vertex it weighs most (ties: the one nearest its
+/// head; a vertex already another bone's handle is skipped, and a bone left without one joins the handle of the
+/// vertex it weighs most). A vertex's weights are its own skin weights on the handles' bones, the heaviest
+/// `max_handles` kept and normalised; a vertex weighted by no apparel bone (a mask wider than the rig) takes the
+/// handle nearest to it at rest. Edges: handles that share a vertex, and each bone's handle with its nearest
+/// ancestor's. Handles are listed in bone order. Deterministic. Throws amt::Error on inputs of the wrong size or
+/// max_handles < 1, and when no apparel vertex is weighted by any bone (naming the count).
+ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& apparel, const ApparelBones& bones,
+                            int max_handles = 4);
+
 }  // namespace amt

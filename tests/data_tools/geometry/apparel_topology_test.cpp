@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <string>
 #include <utility>
 
 #include "data_tools/geometry/error.h"
@@ -191,6 +192,122 @@ TEST(ApparelHandles, AreDeterministicAndRefuseBadOptions) {
   bad.radius = bad.spacing;
   EXPECT_THROW(apparel_handles(c.V, c.E, c.apparel, c.hang, bad), Error);
   EXPECT_THROW(apparel_handles(c.V, c.E, c.apparel, std::vector<float>(3, 0.0f)), Error);
+}
+
+// A hair chain as a rig holds it: vertex 0 on the neck (body), vertices 1-6 hanging 1 cm apart below it.
+// Rig bones: 0 neck (a body joint), 1 hair0 (head y = 0), 2 hair1 (y = -3 cm), 3 hair2 (y = -6 cm), 4 tip (under
+// hair2, weighing nothing). Skin weights: v1 neck 0.5 + hair0 0.5, v2 hair0, v3 hair0 0.25 + hair1 0.75, v4 hair1,
+// v5 hair1 0.5 + hair2 0.5, v6 neck alone (apparel that the rig does not move: a mask wider than the rig).
+struct RiggedChain {
+  MatrixX3f V, heads;
+  std::vector<std::string> names{"neck", "hair0", "hair1", "hair2", "tip"};
+  std::vector<int32_t> parents{-1, 0, 1, 2, 3};
+  Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> indices;
+  MatrixXfR weights;
+  std::vector<int32_t> apparel{1, 2, 3, 4, 5, 6};
+};
+
+RiggedChain rigged_chain() {
+  RiggedChain c;
+  c.V.resize(7, 3);
+  for (int i = 0; i < 7; ++i) c.V.row(i) << 0.0f, -0.01f * float(i), 0.0f;
+  c.heads.resize(5, 3);
+  c.heads << 0, 0.05f, 0, 0, 0, 0, 0, -0.03f, 0, 0, -0.06f, 0, 0, -0.09f, 0;
+  c.indices.setConstant(7, 2, -1);
+  c.weights.setZero(7, 2);
+  const auto set = [&](int v, int b0, float w0, int b1 = -1, float w1 = 0.0f) {
+    c.indices(v, 0) = b0, c.weights(v, 0) = w0, c.indices(v, 1) = b1, c.weights(v, 1) = w1;
+  };
+  set(0, 0, 1.0f);
+  set(1, 0, 0.5f, 1, 0.5f);
+  set(2, 1, 1.0f);
+  set(3, 1, 0.25f, 2, 0.75f);
+  set(4, 2, 1.0f);
+  set(5, 2, 0.5f, 3, 0.5f);
+  set(6, 0, 1.0f);
+  return c;
+}
+
+TEST(BoneHandles, SelectApparelBonesRenumbersAndDropsBodyInfluences) {
+  const RiggedChain c = rigged_chain();
+  // Keep hair0 and hair2 only: hair2's parent becomes hair0 (its nearest kept ancestor).
+  const ApparelBones b = select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {0, 1, 0, 1, 0});
+  ASSERT_EQ(b.num_bones(), 2);
+  EXPECT_EQ(b.names, (std::vector<std::string>{"hair0", "hair2"}));
+  EXPECT_EQ(b.parents, (std::vector<int32_t>{-1, 0}));
+  EXPECT_FLOAT_EQ(b.heads(1, 1), -0.06f);
+  EXPECT_EQ(b.indices(1, 0), -1);  // the neck's half of v1 dropped
+  EXPECT_EQ(b.weights(1, 0), 0.0f);
+  EXPECT_EQ(b.indices(1, 1), 0);  // hair0
+  EXPECT_EQ(b.weights(1, 1), 0.5f);
+  EXPECT_EQ(b.indices(3, 0), 0);  // v3's quarter on hair0 stays, its hair1 part (not kept) is dropped
+  EXPECT_EQ(b.weights(3, 0), 0.25f);
+  EXPECT_EQ(b.indices(3, 1), -1);
+  EXPECT_EQ(b.weights(3, 1), 0.0f);
+  EXPECT_EQ(b.indices(4, 0), -1);  // v4 on hair1 alone: nothing kept
+  EXPECT_EQ(b.indices(5, 1), 1);   // v5's half on hair2, renumbered
+  EXPECT_EQ(b.weights(5, 1), 0.5f);
+  EXPECT_THROW(select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {1, 1}), Error);
+}
+
+TEST(BoneHandles, OneHandlePerBoneAtTheVertexItWeighsMostWithTheVerticesOwnWeights) {
+  const RiggedChain c = rigged_chain();
+  const ApparelBones b = select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {0, 1, 1, 1, 1});
+  const ApparelHandles h = bone_handles(c.V, c.apparel, b, 4);
+  // hair0 at v2 (its only full weight), hair1 at v4, hair2 at v5 (its one vertex); the tip weighs nothing.
+  // Rows are positions in the apparel list (vertex - 1).
+  ASSERT_EQ(h.num_handles(), 3);
+  EXPECT_EQ(h.handles, (std::vector<int32_t>{1, 3, 4}));
+  ASSERT_EQ(h.vertex_weights.cols(), 4);
+  const auto expect_row = [&](int row, std::vector<std::pair<int, float>> want) {
+    for (int k = 0; k < 4; ++k) {
+      const int handle = k < int(want.size()) ? want[size_t(k)].first : want[0].first;
+      const float weight = k < int(want.size()) ? want[size_t(k)].second : 0.0f;
+      EXPECT_EQ(h.vertex_handles(row, k), handle) << "row " << row << " slot " << k;
+      EXPECT_FLOAT_EQ(h.vertex_weights(row, k), weight) << "row " << row << " slot " << k;
+    }
+  };
+  expect_row(0, {{0, 1.0f}});                // v1: half on the neck, all of its apparel half on hair0
+  expect_row(1, {{0, 1.0f}});                // v2
+  expect_row(2, {{1, 0.75f}, {0, 0.25f}});   // v3: heaviest first
+  expect_row(3, {{1, 1.0f}});                // v4
+  expect_row(4, {{1, 0.5f}, {2, 0.5f}});     // v5
+  expect_row(5, {{2, 1.0f}});                // v6: on no apparel bone, the nearest handle (v5, 1 cm)
+  // Handles that share a vertex, and each bone's with its parent's: hair0-hair1, hair1-hair2, nothing else.
+  ASSERT_EQ(h.handle_edges.rows(), 2);
+  EXPECT_EQ(h.handle_edges(0, 0), 0);
+  EXPECT_EQ(h.handle_edges(0, 1), 1);
+  EXPECT_EQ(h.handle_edges(1, 0), 1);
+  EXPECT_EQ(h.handle_edges(1, 1), 2);
+}
+
+TEST(BoneHandles, ABoneWithNoVertexOfItsOwnJoinsTheHandleThereAndBadInputIsRefused) {
+  MatrixX3f V(1, 3);
+  V << 0, 0, 0;
+  ApparelBones b;
+  b.names = {"a", "b"};
+  b.parents = {-1, -1};
+  b.heads.setZero(2, 3);
+  b.indices.resize(1, 2);
+  b.indices << 0, 1;
+  b.weights.resize(1, 2);
+  b.weights << 0.5f, 0.5f;
+  const ApparelHandles h = bone_handles(V, {0}, b);
+  ASSERT_EQ(h.num_handles(), 1);  // b's one vertex is a's handle: b moves with it
+  EXPECT_EQ(h.vertex_handles(0, 0), 0);
+  EXPECT_FLOAT_EQ(h.vertex_weights(0, 0), 1.0f);
+  EXPECT_EQ(h.handle_edges.rows(), 0);
+  EXPECT_THROW(bone_handles(V, {0}, b, 0), Error);  // max_handles
+  EXPECT_THROW(bone_handles(V, {1}, b), Error);     // apparel vertex out of range
+  b.weights.setZero();
+  try {
+    bone_handles(V, {0}, b);
+    ADD_FAILURE() << "expected an error: no bone weighs the apparel";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("none of the 2 apparel bones weighs any of the 1 apparel vertices"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

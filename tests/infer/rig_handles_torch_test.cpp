@@ -1,0 +1,130 @@
+// A rig's own bones as the apparel module's handles (issue 35, item 2): a PMX model's physics-driven hair bones
+// become one handle each at the vertex the bone weighs most, the bind carries them, and `amt animate` takes them
+// with --apparel-handles rig and names them beside the automatic handles it uses by default.
+#include <gtest/gtest.h>
+#include <torch/utils.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+
+#include "data_tools/formats/pmx_export.h"
+#include "infer/character_input.h"
+#include "tests/data_tools/builder/pmx_humanoid.h"
+#include "tests/test_support.h"
+#include "tests/train/fresh_model.h"
+#include "train/pipeline.h"
+
+namespace amt {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RiggedPmx {
+  fs::path dir;
+  std::string pmx, model;
+  RuntimeCharacter character;
+};
+
+RiggedPmx rigged_pmx(const std::string& name) {
+  RiggedPmx r;
+  r.dir = test::temp_dir(name);
+  r.pmx = (r.dir / "humanoid.pmx").string();
+  write_pmx(test::pmx_humanoid(), r.pmx);
+  r.model = test::write_fresh_model(r.dir / "model", 5, canonical_joint_names(), /*local_apparel=*/true,
+                                    /*handle_spacing=*/0.05);
+  CharacterSpec spec;
+  spec.spec = r.pmx;
+  r.character = load_character(spec);
+  return r;
+}
+
+TEST(RigHandles, APmxModelsPhysicsDrivenBonesBecomeTheHandles) {
+  const RiggedPmx r = rigged_pmx("rig_handles_pmx");
+  const RuntimeCharacter& c = r.character;
+  // The humanoid's hair: 髪1 髪2 髪3 on simulated bodies, a box of 8 vertices each skinned BDEF1 to its bone.
+  ASSERT_NE(c.rig_bones, nullptr);
+  EXPECT_EQ(c.rig_bones->names, (std::vector<std::string>{"髪1", "髪2", "髪3"}));
+  EXPECT_EQ(c.rig_bones->parents, (std::vector<int32_t>{-1, 0, 1}));
+  ASSERT_EQ(c.rig_apparel_mask.size(), size_t(c.mesh.num_vertices()));
+  EXPECT_EQ(std::count(c.rig_apparel_mask.begin(), c.rig_apparel_mask.end(), uint8_t(1)), 24);
+
+  const ModelBundle bundle = load_model_bundle(r.model);
+  const int64_t N = c.mesh.num_vertices();
+  const at::Tensor V = torch::from_blob(const_cast<float*>(c.mesh.V.data()), {N, 3}, torch::kFloat).clone();
+  const at::Tensor F = torch::from_blob(const_cast<int32_t*>(c.mesh.F.data()), {c.mesh.num_faces(), 3}, torch::kInt)
+                           .to(torch::kLong);
+  const int64_t J = c.skeleton.num_joints();
+  const at::Tensor joints =
+      torch::from_blob(const_cast<float*>(c.skeleton.rest_joints.data()), {J, 3}, torch::kFloat).clone();
+  BindOptions o;
+  o.apparel_mask = torch::tensor(std::vector<int64_t>(c.rig_apparel_mask.begin(), c.rig_apparel_mask.end())).to(torch::kBool);
+  o.apparel_bones = c.rig_bones;
+  const BoundCharacter bound = bind_character(bundle, V, F, joints, o);
+  ASSERT_EQ(bound.num_apparel(), 24);
+  ASSERT_EQ(bound.handle_rows.size(0), 3);  // one handle per bone
+  const at::Tensor ids = bound.apparel_ids;
+  const ApparelBones& bones = *c.rig_bones;
+  for (int h = 0; h < 3; ++h) {
+    // The handle's vertex weighs bone h fully (BDEF1), and of the box's 8 such vertices it is the nearest to the
+    // bone's head.
+    const int64_t v = ids[bound.handle_rows[h].item<int64_t>()].item<int64_t>();
+    EXPECT_EQ(bones.indices(v, 0), h) << "handle " << h;
+    EXPECT_FLOAT_EQ(bones.weights(v, 0), 1.0f);
+    const float own = (c.mesh.V.row(v) - bones.heads.row(h)).norm();
+    for (int64_t r2 = 0; r2 < bound.num_apparel(); ++r2) {
+      const int64_t u = ids[r2].item<int64_t>();
+      if (bones.indices(u, 0) == h) {
+        EXPECT_LE(own, (c.mesh.V.row(u) - bones.heads.row(h)).norm() + 1e-6f);
+      }
+    }
+  }
+  // Every apparel vertex follows its own bone's handle alone, weights summing to 1.
+  const at::Tensor sums = bound.handle_vertex_weights.sum(1);
+  EXPECT_LT((sums - 1).abs().max().item<float>(), 1e-6f);
+  for (int64_t r2 = 0; r2 < bound.num_apparel(); ++r2) {
+    const int64_t v = ids[r2].item<int64_t>();
+    EXPECT_EQ(bound.handle_vertex_handles[r2][0].item<int64_t>(), bones.indices(v, 0)) << "vertex " << v;
+    EXPECT_FLOAT_EQ(bound.handle_vertex_weights[r2][0].item<float>(), 1.0f);
+  }
+  // The graph over the handles: the chain 髪1-髪2-髪3.
+  ASSERT_EQ(bound.handle_edges.size(0), 2);
+  // Without the bones the same bind picks handles automatically along the hair, at the module's spacing.
+  o.apparel_bones = nullptr;
+  const BoundCharacter automatic = bind_character(bundle, V, F, joints, o);
+  EXPECT_GT(automatic.handle_rows.size(0), 0);
+}
+
+TEST(RigHandles, AnimateTakesTheRigsBonesWhenAskedAndNamesThemOtherwise) {
+  const RiggedPmx r = rigged_pmx("rig_handles_animate");
+  const std::string motion = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
+  const auto run = [&](const std::string& handles, const std::string& mask) {
+    return test::run_command("cd '" + r.dir.string() + "' && " +
+                             test::shell_command(AMT_BINARY, {"animate", "--character", "humanoid.pmx", "--motion",
+                                                              motion, "--model", "model", "--frames", "4", "--out",
+                                                              "out-" + handles + "-" + mask + ".glb", "--threads", "1",
+                                                              "--bind", "none", "--apparel-handles", handles,
+                                                              "--apparel-mask", mask}));
+  };
+  const test::CommandResult automatic = run("auto", "auto");
+  ASSERT_EQ(automatic.status, 0) << automatic.err;
+  // auto: handles picked automatically (they measure better than the rig's bones), and the rig's bones named.
+  EXPECT_NE(automatic.out.find("picked automatically (the rig's 3 apparel bones: --apparel-handles rig)"),
+            std::string::npos)
+      << automatic.out;
+  const test::CommandResult model = run("model", "auto");
+  ASSERT_EQ(model.status, 0) << model.err;
+  EXPECT_NE(model.out.find("picked automatically"), std::string::npos) << model.out;
+  const test::CommandResult rig = run("rig", "rig");
+  ASSERT_EQ(rig.status, 0) << rig.err;
+  EXPECT_NE(rig.out.find("apparel on 3 handles (8.0 apparel vertices each), the rig's 3 apparel bones "
+                         "(--apparel-handles rig)"),
+            std::string::npos)
+      << rig.out;
+  const test::CommandResult bad = run("bones", "auto");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--apparel-handles"), std::string::npos) << bad.err;
+}
+
+}  // namespace
+}  // namespace amt
