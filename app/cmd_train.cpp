@@ -237,6 +237,18 @@ void add_train_command(CLI::App& app) {
       "Segmenter with inputs welded: train on the characters as built only (no open-parts, bare-body, "
       "mirrored, turned or scaled variants)");
   train
+      ->add_option("--segmenter-artist-style", command->options.segmenter_artist_style,
+                   "Segmenter with augmentation: share of steps that draw the character remade as artists build "
+                   "models (UV islands with coincident copies, hair strips, double-sided and layered panels; as amt "
+                   "eval --artist-style remakes them)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  train
+      ->add_option("--segmenter-artist-vertices", command->options.segmenter_artist_vertices,
+                   "Vertices the segmenter's artist-style remakes are subdivided to (0: no subdivision)")
+      ->check(CLI::Range(0, 200000))
+      ->capture_default_str();
+  train
       ->add_option("--segmenter-held-weight", command->options.segmenter_held_weight,
                    "Segmenter: loss weight of the held rows, the body vertices of parts that also hold apparel "
                    "(where a piece hangs from the body)")

@@ -7,8 +7,10 @@
 #include <cstring>
 #include <filesystem>
 #include <iomanip>
+#include <random>
 #include <sstream>
 
+#include "data_tools/builder/artist_style.h"
 #include "data_tools/builder/segmenter_augmentation.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/apparel_topology.h"
@@ -260,6 +262,21 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
         } catch (const Error& error) {
           std::fprintf(stderr, "warning: %s: /characters/%s: no open-parts variant for the segmenter: %s\n",
                        shards_[c.shard].c_str(), c.name.c_str(), error.what());
+        }
+        if (options_.segmenter_artist_vertices >= 0) {
+          ArtistStyleOptions artist;
+          std::seed_seq seq{uint64_t(options_.seed), uint64_t(std::hash<std::string>{}(c.name)), uint64_t(0xa57)};
+          std::mt19937_64 draw(seq);
+          artist.seed = draw();
+          artist.target_vertices = options_.segmenter_artist_vertices;
+          try {
+            const ArtistStyleCharacter r = artist_style_character(data, artist);
+            add("artist_style", SegmenterExample{r.character.mesh, r.character.skeleton, r.character.body_weights,
+                                                 r.character.apparel_mask});
+          } catch (const Error& error) {
+            std::fprintf(stderr, "warning: %s: /characters/%s: no artist-style variant for the segmenter: %s\n",
+                         shards_[c.shard].c_str(), c.name.c_str(), error.what());
+          }
         }
       }
     }

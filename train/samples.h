@@ -87,7 +87,8 @@ struct CharacterTensors {
   at::Tensor segmenter_weights;
   /// With SampleSourceOptions::segmenter_variants: the character remade for augmentation, each with its
   /// own V (N', 3), features (N', kSegmentationFeatures) and apparel mask (N') bool
-  /// (data_tools/builder/segmenter_augmentation.h): open parts, bare body, bare open parts.
+  /// (data_tools/builder/segmenter_augmentation.h): open parts, bare body, bare open parts; and with
+  /// SampleSourceOptions::segmenter_artist_vertices the artist-style remake (data_tools/builder/artist_style.h).
   struct SegmenterVariant {
     std::string what;
     at::Tensor V, features, apparel_mask, weights;
@@ -138,6 +139,9 @@ struct SampleSourceOptions {
   std::string segmenter_inputs = "shape";
   /// The segmenter: also make CharacterTensors::segmenter_variants.
   bool segmenter_variants = false;
+  /// With segmenter_variants: also the "artist_style" variant, the character remade by artist_style_character
+  /// subdivided to this many vertices (0: not subdivided; < 0: no remake), seeded by `seed` and the character's name.
+  int segmenter_artist_vertices = -1;
   /// The segmenter: loss weight of the held rows (held_rows_weights); 1 for none.
   double segmenter_held_weight = 1.0;
   /// The apparel anchor of CharacterTensors::apparel_anchor_weights (ApparelDynamicsOptions::anchor):

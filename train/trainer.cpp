@@ -180,7 +180,8 @@ struct Task {
 };
 
 // One augmented segmenter input of character `c` (TrainOptions::segmenter_augment): a variant drawn
-// (as built 60 %, open parts 20 %, bare body 10 %, bare open parts 10 %), mirrored through x = 0 with
+// (the artist-style remake with probability `artist_share`, else as built 60 %, open parts 20 %, bare body 10 %,
+// bare open parts 10 %), mirrored through x = 0 with
 // probability 1/2, turned about the vertical (+Y) by an angle in [-2, 2] degrees and scaled by a
 // factor in [0.85, 1.15]. The features follow the geometry: normals (columns 0-2) are mirrored and
 // turned, the other columns are distances over the height and part shares, which none of these change.
@@ -188,13 +189,19 @@ struct Task {
 struct SegmenterInput {
   at::Tensor V, features, apparel_mask, weights;
 };
-SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t seed, int64_t step) {
+SegmenterInput augmented_segmenter_input(const CharacterTensors& c, uint64_t seed, int64_t step, double artist_share) {
   std::seed_seq seq{uint64_t(seed), uint64_t(step), uint64_t(std::hash<std::string>{}(c.name)), uint64_t(0x5e6)};
   std::mt19937_64 rng(seq);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   SegmenterInput in{c.V, c.segmenter_features, c.apparel_mask, c.segmenter_weights};
+  // The artist-style share is drawn first and only when asked for, so that runs without it draw as before.
+  const bool artist = artist_share > 0.0 && unit(rng) < artist_share;
   const double u = unit(rng);
-  const char* what = u < 0.6 ? "" : u < 0.8 ? "open_parts" : u < 0.9 ? "bare_body" : "bare_open_parts";
+  const char* what = artist    ? "artist_style"
+                     : u < 0.6 ? ""
+                     : u < 0.8 ? "open_parts"
+                     : u < 0.9 ? "bare_body"
+                               : "bare_open_parts";
   for (const auto& v : c.segmenter_variants)
     if (v.what == what) in = {v.V, v.features, v.apparel_mask, v.weights};
   const bool mirror = unit(rng) < 0.5;
@@ -450,14 +457,16 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       const double pos_weight = o.segmenter_pos_weight;
       const bool augment = net->options.inputs == "welded" && o.segmenter_augment;
       const uint64_t seed = o.seed;
-      task.loss = [net, pos_weight, augment, seed](const TrainingSample& s, int64_t step, bool validating) mutable {
+      const double artist_share = o.segmenter_artist_style;
+      task.loss = [net, pos_weight, augment, seed, artist_share](const TrainingSample& s, int64_t step,
+                                                                 bool validating) mutable {
         const CharacterTensors& c = *s.character;
         if (!augment || validating) {
           const at::Tensor bce = apparel_bce_loss(net->forward(c.V, c.segmenter_features), c.apparel_mask, pos_weight,
                                                   validating ? at::Tensor() : c.segmenter_weights);
           return std::vector<at::Tensor>{bce, bce};  // eq. (3)
         }
-        const SegmenterInput in = augmented_segmenter_input(c, seed, step);
+        const SegmenterInput in = augmented_segmenter_input(c, seed, step, artist_share);
         const at::Tensor bce =
             apparel_bce_loss(net->forward(in.V, in.features), in.apparel_mask, pos_weight, in.weights);
         return std::vector<at::Tensor>{bce, bce};  // eq. (3)
@@ -775,6 +784,12 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     if (!network_infos.empty()) options_from_json(network_infos[0].options_json, network_paths[0], segmenter);
     sampling.segmenter_inputs = segmenter.inputs;
     sampling.segmenter_variants = segmenter.inputs == "welded" && o.segmenter_augment;
+    if (sampling.segmenter_variants && o.segmenter_artist_style > 0.0) {
+      AMT_CHECK(o.segmenter_artist_vertices == 0 || o.segmenter_artist_vertices >= 1000,
+                "--segmenter-artist-vertices: expected 0 (no subdivision) or at least 1000, found ",
+                o.segmenter_artist_vertices);
+      sampling.segmenter_artist_vertices = o.segmenter_artist_vertices;
+    }
     sampling.segmenter_held_weight = o.segmenter_held_weight;
   }
   sampling.kind = end_to_end ? ModuleKind::kRefiner : kind;

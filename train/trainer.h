@@ -99,6 +99,12 @@ struct TrainOptions {
   /// probability 1/2, turns it about the vertical by up to 2 degrees and scales it by 0.85 to 1.15;
   /// seeded by --seed, the step and the character). Validation sees the characters as built.
   bool segmenter_augment = true;
+  /// Segmenter with augmentation: share of steps that draw the character remade as artists build models
+  /// (data_tools/builder/artist_style.h: UV islands with coincident copies, hair strips, double-sided and layered
+  /// panels, open body parts, subdivided to `segmenter_artist_vertices`), before the other variants share the rest;
+  /// the remake is then mirrored, turned and scaled like them. 0: never (no remake is made).
+  double segmenter_artist_style = 0.0;
+  int segmenter_artist_vertices = 20000;
   /// (run) Segmenter: loss weight of the held rows (held_rows_weights: body vertices of parts that hold apparel,
   /// where a piece hangs from the body); 1 for none.
   double segmenter_held_weight = 1.0;

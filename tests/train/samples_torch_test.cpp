@@ -6,9 +6,16 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <functional>
+#include <random>
+#include <string>
 
+#include "data_tools/builder/artist_style.h"
+#include "data_tools/builder/dataset_builder.h"
+#include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/error.h"
 #include "micro_dataset.h"
+#include "tests/data_tools/builder/tiny_build.h"
 
 namespace amt {
 namespace {
@@ -139,6 +146,55 @@ TEST(Samples, HeldRowsAreTheBodyVerticesOfPartsThatHoldApparel) {
   const std::vector<uint8_t> mask = {0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
   const at::Tensor w = held_rows_weights(mask, F, 5.0);
   EXPECT_TRUE(at::equal(w, at::tensor({1.0f, 1.0f, 1.0f, 5.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f}))) << w;
+}
+
+// The segmenter's artist-style variant: made only when asked for, the character remade by artist_style_character
+// with the sample source's seed (its own vertices, features and mask, rows of one length), and the same remake on
+// every load.
+TEST(Samples, TheSegmentersArtistStyleVariantIsTheRemakeOfTheCharacter) {
+  test::use_one_thread();
+  const std::string dir = test::test_directory("amt_samples_artist_style");
+  build_dataset(test::tiny_build_options(dir, 1));  // a generated, dressed character (the capsules have no head)
+  const std::string shard = dir + "/character-0000.h5";
+  SampleSourceOptions options;
+  options.kind = ModuleKind::kSegmenter;
+  options.frames = 1;
+  options.segmenter_inputs = "welded";
+  options.segmenter_variants = true;
+  const auto variant = [](const CharacterTensors& c) -> const CharacterTensors::SegmenterVariant* {
+    for (const auto& v : c.segmenter_variants)
+      if (v.what == "artist_style") return &v;
+    return nullptr;
+  };
+  {
+    SampleSource plain({shard}, options);
+    EXPECT_EQ(variant(*plain.character(0)), nullptr);  // not asked for
+  }
+  options.segmenter_artist_vertices = 0;
+  SampleSource source({shard}, options);
+  const auto c = source.character(0);
+  const CharacterTensors::SegmenterVariant* v = variant(*c);
+  ASSERT_NE(v, nullptr);
+  const int64_t N = v->V.size(0);
+  EXPECT_GT(N, c->V.size(0));  // UV seams split into coincident copies, double-sided panels
+  EXPECT_EQ(v->features.size(0), N);
+  EXPECT_EQ(v->apparel_mask.size(0), N);
+  // The remake's mask is the source's carried through its map.
+  CharacterData data = DatasetReader(shard).read_character(c->name);
+  ArtistStyleOptions artist;
+  std::seed_seq seq{uint64_t(options.seed), uint64_t(std::hash<std::string>{}(c->name)), uint64_t(0xa57)};
+  std::mt19937_64 draw(seq);
+  artist.seed = draw();
+  artist.target_vertices = 0;
+  const ArtistStyleCharacter remake = artist_style_character(data, artist);
+  ASSERT_EQ(remake.character.mesh.num_vertices(), N);
+  for (int64_t i = 0; i < N; ++i)
+    ASSERT_EQ(v->apparel_mask[i].item<bool>(), remake.character.apparel_mask[size_t(i)] != 0) << "vertex " << i;
+  const at::Tensor remade =
+      at::from_blob(const_cast<float*>(remake.character.mesh.V.data()), {N, 3}, at::kFloat).clone();
+  EXPECT_TRUE(at::equal(v->V, remade));
+  SampleSource again({shard}, options);
+  EXPECT_TRUE(at::equal(variant(*again.character(0))->V, v->V));
 }
 
 }  // namespace
