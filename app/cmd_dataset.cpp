@@ -10,6 +10,7 @@
 #include "app/commands.h"
 #include "app/repository.h"
 #include "data_tools/formats/atomic_file.h"
+#include "data_tools/builder/artist_style_dataset.h"
 #include "data_tools/builder/dataset_builder.h"
 #include "data_tools/builder/dataset_info.h"
 #include "data_tools/builder/dataset_preview.h"
@@ -272,6 +273,37 @@ void add_export_pmx_command(CLI::App& dataset) {
   });
 }
 
+// `amt dataset artist-style FILE --out X.h5`: the shard's characters remade as artists build models.
+void add_artist_style_command(CLI::App& dataset) {
+  auto* remake = dataset.add_subcommand(
+      "artist-style",
+      "Remake a shard's characters as artists build models (UV seams with coincident copies, hair strips, "
+      "double-sided and layered panels, open body parts), with their clips' ground truth, into a new shard");
+  auto in = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto options = std::make_shared<ArtistStyleDatasetOptions>();
+  options->remake.target_vertices = 20000;  // as amt eval --artist-style
+  remake->add_option("FILE", *in, "Dataset shard (HDF5, format amt-dataset)")->required();
+  remake->add_option("--out", *out, "Output shard (.h5; written to a temporary name, then renamed)")->required();
+  remake->add_option("--character", options->character, "Only this character (default: every one)");
+  remake->add_option("--max-clips", options->max_clips, "At most this many clips per character (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  remake->add_option("--vertices", options->remake.target_vertices,
+                     "Vertices the remake is subdivided to (0: no subdivision; as amt eval --artist-style-vertices)")
+      ->capture_default_str();
+  remake->add_option("--seed", options->remake.seed, "Seed of the remake (as amt eval --artist-style-seed)")
+      ->capture_default_str();
+  remake->add_flag("--quiet", [options](int64_t) { options->progress = false; }, "No progress lines");
+  add_threads_option(*remake);
+  remake->callback([in, out, options] {
+    const ArtistStyleDatasetSummary s = write_artist_style_dataset(*in, *out, *options);
+    std::cout << "wrote " << *out << ": " << s.characters << " characters remade artist-style ("
+              << s.vertices / std::max(s.characters, 1) << " vertices each on average), " << s.clips << " clips, "
+              << s.frames << " frames\n";
+  });
+}
+
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
@@ -284,6 +316,7 @@ void add_dataset_command(CLI::App& app) {
   add_pairs_command(*dataset);
   add_check_command(*dataset);
   add_export_pmx_command(*dataset);
+  add_artist_style_command(*dataset);
 }
 
 }  // namespace amt::app

@@ -360,7 +360,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     s.apparel_source = "the file " + o.apparel_mask;
   }
   // The handles: picked automatically along the apparel (auto, model), as the module was trained; or at the rig's
-  // own apparel bones (rig). On the held-out characters' ground-truth masks the module on the rig's 54 bones
+  // own apparel bones (rig). On the held-out characters' ground-truth masks the module on the rig's bones
   // measured worse than on handles picked automatically (rollout PMD_a 3.83 against 3.60 cm, skinning 5.06 cm;
   // README "Apparel on handles"), so auto does not take them.
   AMT_CHECK(o.apparel_handles == "auto" || o.apparel_handles == "rig" || o.apparel_handles == "model",

@@ -56,6 +56,20 @@ TEST(DatasetBuildCommand, BuildsATinyDatasetThatInfoCheckAndPreviewRead) {
   const MatrixX3f first = reader.read_vertices(reader.clip_names()[0], 0, 1);
   EXPECT_LT((frames.frames[0] - first).cwiseAbs().maxCoeff(), 1e-5f);
 
+  // artist-style: the character remade (coincident copies at its seams, more vertices) with its two clips, into a
+  // new shard; onto its own input it is refused.
+  const test::CommandResult remade = test::expect_success(
+      dir, {"dataset", "artist-style", "data/character-0000.h5", "--out", "remade.h5", "--vertices", "0", "--quiet",
+            "--threads", "1"});
+  EXPECT_EQ(remade.out.rfind("wrote remade.h5: 1 characters remade artist-style (", 0), 0u) << remade.out;
+  EXPECT_NE(remade.out.find("), 2 clips, "), std::string::npos) << remade.out;
+  const DatasetReader again_remade((dir / "remade.h5").string());
+  EXPECT_GT(again_remade.read_character("character-0000").mesh.num_vertices(),
+            reader.read_character("character-0000").mesh.num_vertices());
+  test::expect_one_line_error(
+      test::run_amt(dir, {"dataset", "artist-style", "data/character-0000.h5", "--out", "data/character-0000.h5"}),
+      {"data/character-0000.h5", "the output is the input"});
+
   // The same build again: everything already done, nothing rewritten.
   const std::string bytes = test::read_file_bytes(shard);
   const test::CommandResult again = test::expect_success(dir, test::tiny_build());
