@@ -70,6 +70,9 @@ void add_animate_command(CLI::App& app) {
                   "Frames blending from the rest pose into the first frame (not written)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
+  cmd->add_flag("--refiner", o->refine,
+                "Also run the model's joint refiner after the apparel module (off by default: it gains at most "
+                "0.01 cm on the held-out characters for about a third of the frame's time)");
   cmd->add_flag("--no-resolve-penetration", *no_resolve, "Do not push apparel out of the body");
   cmd->add_option("--penetration-margin", o->penetration.margin,
                   "Distance outside the body a pushed vertex ends at, metres")

@@ -61,6 +61,7 @@ struct BenchOptions {
   bool artist_style = false;  // runtime suite: the characters remade artist-style (artist_style.h)
   bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
   bool reference_apparel = false;  // runtime suite: the global apparel form's network timed beside the model's
+  bool refine = false;             // runtime suite: the refiner after the apparel module (amt animate --refiner)
   std::vector<std::string> data;  // segmenter suite: dataset shards or folders
   std::string segmenter;          // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
   std::string split = "test";     // segmenter suite: the characters scored
@@ -197,6 +198,7 @@ void bench_runtime(const BenchOptions& o) {
     options.threads = o.runtime_threads;
     options.repeats = o.repeats;
     options.reference_apparel = o.reference_apparel;
+    options.refine = o.refine;
     const RuntimeFigures r = measure_runtime(bundle, options);
     const int N = r.vertices;
     std::printf(
@@ -375,6 +377,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--segmenter-mask", options->segmenter_mask,
                   "Runtime suite: the apparel mask the segmenter predicts (as `amt animate` by default) instead of the "
                   "dressed character's");
+  bench->add_flag("--refiner", options->refine,
+                  "Runtime suite: also run the model's joint refiner, as amt animate --refiner (off by default, as "
+                  "in amt animate)");
   bench->add_flag("--reference-apparel", options->reference_apparel,
                   "Runtime suite: also time the global apparel form's network (the form the local one replaced, at "
                   "its shipped widths) beside the model's, frame by frame, and print the ratio");

@@ -34,6 +34,9 @@ struct RuntimeBenchmarkOptions {
   /// frame by frame beside the model's, so that the two are compared under the same load
   /// (RuntimeThreadFigures::reference_apparel_ms). Ignored when the model's apparel module is the global form.
   bool reference_apparel = false;
+  /// Run the joint refiner after the apparel module, as `amt animate --refiner` (off by default, as in
+  /// `amt animate`).
+  bool refine = false;
   /// Folder for the scratch GLB (removed afterwards).
   std::string scratch_dir;
 };

@@ -48,13 +48,15 @@ at::Tensor transforms_tensor(const Transforms& transforms) {
 }
 
 RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
-                               PenetrationOptions penetration)
+                               PenetrationOptions penetration, bool refine)
     : bundle_(bundle),
       bound_(std::move(bound)),
       mask_(mask_vector(bound_.apparel_mask)),
       resolver_(F, mask_, penetration),
-      resolve_(resolve) {
-  stepper_ = std::make_unique<PipelineStepper>(bundle_, bound_, rest_apparel_history(bound_), PipelineStages::kFull);
+      resolve_(resolve),
+      refine_(refine) {
+  stepper_ = std::make_unique<PipelineStepper>(bundle_, bound_, rest_apparel_history(bound_),
+                                               refine ? PipelineStages::kFull : PipelineStages::kBodyApparel);
   c10::InferenceMode inference;
   const at::Tensor extent = std::get<0>(bound_.V.max(0)) - std::get<0>(bound_.V.min(0));
   output_bound_ = 10.0f * std::max(extent.norm().item<float>(), 0.1f);
@@ -108,7 +110,7 @@ FrameTimes RuntimeSession::step(const Transforms& joint_transforms, MatrixX3f& V
         const at::Tensor p = part.contiguous();
         check_output(p.data_ptr<float>(), p.size(0), joint_transforms, stage);
       }
-      check_output(V.data(), V.rows(), joint_transforms, "refiner");
+      check_output(V.data(), V.rows(), joint_transforms, refine_ ? "refiner" : "apparel module");
     }
   }
   times.model = seconds_since(start);
@@ -326,7 +328,7 @@ AnimateSummary animate(const AnimateOptions& o) {
   const auto job_start = Clock::now();
   AnimateSummary s;
   s.output = o.out;
-  s.apparel = "learned (the apparel module of " + o.model_dir + ")";
+  s.apparel = "learned (the apparel module of " + o.model_dir + (o.refine ? ", then its refiner" : "") + ")";
   AMT_CHECK(!o.out.empty() || !o.html_dir.empty(), "--out: expected an output (or --html DIR), found none");
   if (!o.out.empty()) output_kind(o.out);  // rejects .gltf / .obj names before any work
   // The viewer folder: refused before any work when it holds files amt did not write.
@@ -407,7 +409,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
               << " in " << bind.seconds << " s\n";
   }
-  RuntimeSession session(bundle, bind.bound, character.mesh.F, o.resolve_penetration, o.penetration);
+  RuntimeSession session(bundle, bind.bound, character.mesh.F, o.resolve_penetration, o.penetration, o.refine);
   s.vertices = character.mesh.num_vertices();
   s.apparel_vertices = int(session.bound().num_apparel());
   s.frames = player.num_frames();

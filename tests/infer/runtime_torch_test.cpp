@@ -214,6 +214,7 @@ MatrixX3f rows_of(const MatrixX3f& V, const at::Tensor& ids) {
 TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   const Fixture f = make_fixture("animate_equal");
   AnimateOptions o = options_for(f, (f.dir / "pred.h5").string());
+  o.refine = true;  // --refiner
   o.playback.lead_in = 0;
   o.resolve_penetration = false;
   o.bind_path = "none";
@@ -269,6 +270,15 @@ TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   // Apparel really moved away from rigid skinning (the model ran): the refiner and apparel step act.
   EXPECT_GT((got[29] - got[0]).abs().max().item<float>(), 0.01f);
   EXPECT_EQ(files_in(f.dir), (std::vector<fs::path>{"mask.txt", "micro.h5", "model", "pred.h5"}));
+
+  // Without --refiner (the default) the output is tile(Â, B̂), the refiner's input, and differs from its output.
+  o.refine = false;
+  o.out = (f.dir / "plain.h5").string();
+  animate(o);
+  const MatrixX3f P = DatasetReader(o.out).read_vertices("walk0", 0, 30);
+  const at::Tensor plain = at::from_blob(const_cast<float*>(P.data()), {30, P.rows() / 30, 3}, at::kFloat);
+  EXPECT_LT((plain - tiled).abs().max().item<float>(), 1e-5f);
+  EXPECT_GT((plain - expected).abs().max().item<float>(), 1e-4f);
 }
 
 TEST(Animate, BadInputGivesOneLineErrorsAndWritesNothing) {
