@@ -12,7 +12,8 @@
 #
 # Environment: AMT (the amt program, default build/app/amt), SEED (default 1), MODULES (which runs,
 # default "segmenter skinning apparel": "apparel" is the apparel module followed by the refiner), and
-# the steps of each run: SEGMENTER_STEPS (30000), SKINNING_STEPS (6000, also for each Table 4
+# the steps of each run: SEGMENTER_STEPS (30000) and SEGMENTER_ARTIST_STEPS (12000) for the segmenter's two
+# stages, SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000), APPAREL_STEPS
 # (16000) and APPAREL_HANDLE_STEPS (10000) for the apparel module's three stages, HANDLES_DATA (the data
 # of the third, default: DATA_DIR), REFINER_STEPS (2000), and APPAREL_SKINNING: the
@@ -25,8 +26,8 @@
 # the refiner on its rollouts. Every run uses AdamW at 5e-4 with a
 # cosine decay to 0 (the paper's 1e-4 is for far longer training than this budget). Settings beyond
 # the paper, measured in models/pretrained/README.md: the segmenter reads welded shape features, trains on
-# augmented characters (open parts, bare bodies) and weighs the held rows, where a piece hangs from the
-# body, 5 times (--segmenter-held-weight 5); the skinning predictor adds a direct KL loss on
+# augmented characters (open parts, bare bodies; in a second stage artist-style remakes) and weighs the held
+# rows, where a piece hangs from the body, 5 times (--segmenter-held-weight 5); the skinning predictor adds a direct KL loss on
 # the weights (--weight-loss 0.1) to the paper's indirect LBS loss; the apparel module predicts the
 # change of each vertex's detail vector in its anchor joint's frame (anchored where each piece
 # attaches) around the inertial rule (inertia 0.6),
@@ -84,8 +85,20 @@ launch() {  # launch NAME ARGS...: one run in the background, its output in <out
   names+=("$name")
 }
 if [[ $modules == *" segmenter "* ]]; then
-  launch segmenter segmenter "${common[@]}" --steps "${SEGMENTER_STEPS:-30000}" --segmenter-held-weight 5 \
-    --segmenter-options "$segmenter"
+  # Two stages: the segmenter on the characters as built and their augmentations (into <out>/segmenter_base/),
+  # then fine-tuned from it with 30 % of its steps on the characters remade as artists build models
+  # (--segmenter-artist-style 0.3: UV seams with coincident copies, hair strips, double-sided and layered panels).
+  segmenter_stages() {
+    run segmenter_base segmenter "${base[@]}" --out "$out/segmenter_base" --lr 5e-4 --checkpoint-every 1000 \
+      --validate-every 1000 --steps "${SEGMENTER_STEPS:-30000}" --segmenter-held-weight 5 \
+      --segmenter-options "$segmenter" &&
+      run segmenter segmenter "${base[@]}" --out "$out" --lr 2e-4 --checkpoint-every 1000 --validate-every 1000 \
+        --steps "${SEGMENTER_ARTIST_STEPS:-12000}" --segmenter-held-weight 5 \
+        --init "$out/segmenter_base/segmenter.ckpt" --segmenter-artist-style 0.3
+  }
+  segmenter_stages > "$out/segmenter.log" 2>&1 &
+  pids+=($!)
+  names+=(segmenter)
 fi
 if [[ $modules == *" skinning "* ]]; then
   launch skinning skinning "${common[@]}" --steps "${SKINNING_STEPS:-6000}" --weight-loss 0.1 \
