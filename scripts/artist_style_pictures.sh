@@ -3,9 +3,10 @@
 # held-out character-0028 of the default dataset remade as artists build models (`amt dataset artist-style`:
 # UV seams with coincident copies, hair strips, double-sided and layered panels, about 20k vertices), animated
 # with its first clip by the segmenter's mask (`--apparel-mask model`, no rig used), four frames each:
-#   before: the apparel module that moves every apparel vertex (models/pretrained/apparel_vertices.ckpt, the
-#           module shipped before apparel moved on handles), the rest of the shipped model;
-#   after:  the shipped model (the apparel module on handles).
+#   before: the model as shipped before apparel moved on handles: the apparel module that moves every apparel
+#           vertex (models/pretrained/apparel_vertices.ckpt) with the refiner after it, the segmenter before its
+#           artist-style fine-tune (models/pretrained/segmenter_base.ckpt), the shipped skinning predictor;
+#   after:  the shipped model as `amt animate` runs it (the apparel module on handles, no refiner).
 # Builds `amt` and the held-out shard if missing (the default dataset's character 28: seed 1, `--shard 28/32`).
 #
 # Environment: AMT_BUILD_DIR (default build), AMT_DATASET_DIR (default data/default), AMT_OUT (default
@@ -32,13 +33,15 @@ clip=$("$amt" dataset info "$out/$character.h5" | awk -v c="$character" '$2 == c
 
 before="$out/model_before"
 mkdir -p "$before"
-for f in segmenter skinning refiner; do cp models/pretrained/$f.ckpt "$before/"; done
+for f in skinning refiner; do cp models/pretrained/$f.ckpt "$before/"; done
 cp models/pretrained/apparel_vertices.ckpt "$before/apparel.ckpt"
+cp models/pretrained/segmenter_base.ckpt "$before/segmenter.ckpt"
 
 for run in before after; do
   model=$([ "$run" = before ] && echo "$before" || echo models/pretrained)
+  refiner=$([ "$run" = before ] && echo --refiner || true)
   "$amt" animate --character "$out/$character.h5:$character" --motion "$out/$character.h5:$clip" \
-    --model "$model" --apparel-mask model --bind none --threads 1 \
+    --model "$model" --apparel-mask model --bind none --threads 1 $refiner \
     --out "$out/$run.glb" --picture "$figures/artist_style_$run.png"
 done
 echo "artist_style_pictures: wrote $figures/artist_style_before.png and $figures/artist_style_after.png"

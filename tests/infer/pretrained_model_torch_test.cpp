@@ -63,9 +63,11 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   // apparel_vertices.ckpt: the per-vertex apparel module the shipped one (on handles) was fine-tuned from, run
   // below in place of apparel.ckpt.
   const std::string kApparelVertices = "apparel_vertices.ckpt";
+  // segmenter_base.ckpt: the segmenter before its artist-style fine-tune (the before picture's), run below alone.
+  const std::string kSegmenterBase = "segmenter_base.ckpt";
   const std::set<std::string> covered = {
       kSegmenterCheckpoint,          kSkinningCheckpoint,       kApparelCheckpoint, kRefinerCheckpoint,
-      kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint, kApparelVertices};
+      kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint, kApparelVertices,   kSegmenterBase};
   for (const std::string& name : shipped) {
     EXPECT_TRUE(covered.count(name)) << kPretrained.string() << "/" << name
                                      << ": a shipped checkpoint this test does not run: add it here";
@@ -104,6 +106,17 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   const Motion walk = retarget_motion(walk_motion(4), canonical_skeleton(), c.body.skeleton);
   std::vector<at::Tensor> frames;
   for (int t = 0; t < 4; ++t) frames.push_back(transforms_tensor(forward_kinematics(c.body.skeleton, walk, t)));
+
+  if (shipped.count(kSegmenterBase)) {
+    const ModelBundle base = load_segmenter_bundle((kPretrained / kSegmenterBase).string());
+    const at::Tensor p = apparel_probabilities(base, c.mesh.V, c.mesh.F, rest_joints);
+    ASSERT_EQ(p.sizes(), (at::IntArrayRef{N}));
+    expect_finite(p, "segmenter_base probabilities");
+    EXPECT_TRUE(((p >= 0) & (p <= 1)).all().item<bool>());
+    // It finds the dressed character's apparel (a fresh network would not: about half its answers wrong).
+    const double agree = ((p > 0.5) == mask).to(at::kFloat).mean().item<double>();
+    EXPECT_GT(agree, 0.9);
+  }
 
   // The shipped module moves handles; the per-vertex one every apparel vertex (the same folder with it as
   // apparel.ckpt).
