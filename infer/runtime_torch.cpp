@@ -363,7 +363,7 @@ AnimateSummary animate(const AnimateOptions& o) {
   }
   // The handles: picked automatically along the apparel (auto, model), as the module was trained; or at the rig's
   // own apparel bones (rig). On the held-out characters' ground-truth masks the module on the rig's bones
-  // measured worse than on handles picked automatically (rollout PMD_a 3.83 against 3.60 cm, skinning 5.06 cm;
+  // measured worse than on handles picked automatically (rollout PMD_a 3.96 against 3.57 cm, skinning 5.06 cm;
   // README "Apparel on handles"), so auto does not take them.
   AMT_CHECK(o.apparel_handles == "auto" || o.apparel_handles == "rig" || o.apparel_handles == "model",
             "--apparel-handles: expected auto, rig or model, found '", o.apparel_handles, "'");

@@ -15,8 +15,9 @@
 # the steps of each run: SEGMENTER_STEPS (30000) and SEGMENTER_ARTIST_STEPS (12000) for the segmenter's two
 # stages, SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000), APPAREL_STEPS
-# (16000) and APPAREL_HANDLE_STEPS (10000) for the apparel module's three stages, HANDLES_DATA (the data
-# of the third, default: DATA_DIR), REFINER_STEPS (2000), and APPAREL_SKINNING: the
+# (16000), APPAREL_HANDLE_STEPS (10000) and APPAREL_FINE_HANDLE_STEPS (4000) for the apparel module's four
+# stages, HANDLES_DATA (the data of the last two, default: DATA_DIR), REFINER_STEPS (2000), and
+# APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
 # weights).
@@ -118,7 +119,8 @@ if [[ $modules == *" apparel "* ]]; then
   # on its own predictions. The one-step stage writes into <out>/apparel_one_step/, the rollout stage into
   # <out>/apparel_vertices/ (the per-vertex module). A third stage fine-tunes that network on handles 3 cm
   # apart (--handle-spacing 0.03: the module moves the handles and every vertex follows them, so seams and
-  # strip bundles cannot come apart) on HANDLES_DATA (comma-separated folders; default: the data above).
+  # strip bundles cannot come apart) on HANDLES_DATA (comma-separated folders; default: the data above), into
+  # <out>/apparel_handles_3cm/, and a fourth that one on handles 2 cm apart, at half the learning rate.
   anchor_skinning=${APPAREL_SKINNING:-$out/skinning.ckpt}
   IFS=, read -r -a handles_data <<< "${HANDLES_DATA:-$1}"
   skinning_args=()
@@ -140,10 +142,15 @@ if [[ $modules == *" apparel "* ]]; then
         --checkpoint-every 1000 --validate-every 1000 --init "$out/apparel_one_step/apparel.ckpt" --lr 2e-4 \
         --steps "${APPAREL_STEPS:-16000}" --window 63 --free-run 40 --apparel-loss distance --unroll 5:0.3,20:1 \
         --noise 0.001 --rest-start 0.2 &&
+      run apparel_handles_3cm apparel --data "${handles_data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 \
+        --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out/apparel_handles_3cm" \
+        --checkpoint-every 500 --validate-every 1000 --init "$out/apparel_vertices/apparel.ckpt" \
+        --handle-spacing 0.03 --lr 2e-4 --steps "${APPAREL_HANDLE_STEPS:-10000}" --window 63 --free-run 40 \
+        --apparel-loss distance --unroll 5:0.3,20:1 &&
       run apparel apparel --data "${handles_data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 \
         --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out" --checkpoint-every 500 \
-        --validate-every 1000 --init "$out/apparel_vertices/apparel.ckpt" --handle-spacing 0.03 --lr 2e-4 \
-        --steps "${APPAREL_HANDLE_STEPS:-10000}" --window 63 --free-run 40 --apparel-loss distance \
+        --validate-every 1000 --init "$out/apparel_handles_3cm/apparel.ckpt" --handle-spacing 0.02 --lr 1e-4 \
+        --steps "${APPAREL_FINE_HANDLE_STEPS:-4000}" --window 63 --free-run 40 --apparel-loss distance \
         --unroll 5:0.3,20:1 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" --edge-weight 1 \
