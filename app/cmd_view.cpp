@@ -4,6 +4,7 @@
 // Ctrl-C (SIGINT / SIGTERM end the process, app/main.cpp).
 #include <httplib.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -53,20 +54,82 @@ std::string role_of(const std::string& stem) {
   return "prediction";
 }
 
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
+// The content type of a served file, from its extension.
+const char* content_type(const fs::path& path) {
+  const std::string e = path.extension().string();
+  if (e == ".html") return "text/html";
+  if (e == ".js" || e == ".mjs") return "text/javascript";
+  if (e == ".json") return "application/json";
+  if (e == ".glb") return "model/gltf-binary";
+  if (e == ".png") return "image/png";
+  if (e == ".css") return "text/css";
+  return "application/octet-stream";
 }
 
+// Streams the regular file `path` in 64 KB pieces (never the whole file in memory); cpp-httplib answers a
+// single byte range from the provider. 404 for anything else.
 void serve_file(httplib::Response& response, const std::string& path, const char* type) {
   std::error_code error;
-  if (!fs::is_regular_file(path, error)) {
+  const fs::file_status status = fs::status(path, error);
+  if (error || !fs::is_regular_file(status)) {
     response.status = 404;
     return;
   }
-  response.set_content(read_bytes(path), type);
+  const uintmax_t size = fs::file_size(path, error);
+  if (error) {
+    response.status = 404;
+    return;
+  }
+  auto in = std::make_shared<std::ifstream>(path, std::ios::binary);
+  response.set_content_provider(size, type, [in](size_t offset, size_t length, httplib::DataSink& sink) {
+    std::vector<char> buffer(std::min<size_t>(length, 1 << 16));
+    in->clear();
+    in->seekg(static_cast<std::streamoff>(offset));
+    in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const std::streamsize n = in->gcount();
+    return n > 0 && sink.write(buffer.data(), static_cast<size_t>(n));
+  });
+}
+
+// The file of a viewer folder (real path `root`, canonical) that request path `relative` names, or "" when it
+// may not be served: a component that is empty, "." or "..", or starts with a dot (dotfiles), or a path whose
+// real location (symbolic links followed) is not a regular file inside the folder. cpp-httplib has already
+// refused paths that climb out with "..", but a link inside the folder can point anywhere; a folder someone
+// sends you must not read your files through it.
+std::string folder_file(const fs::path& root, const std::string& relative) {
+  const std::string name = relative.empty() ? "index.html" : relative;
+  size_t start = 0;
+  while (start <= name.size()) {
+    const size_t end = std::min(name.find('/', start), name.size());
+    const std::string part = name.substr(start, end - start);
+    if (part.empty() || part[0] == '.') return "";
+    start = end + 1;
+  }
+  std::error_code error;
+  const fs::path real = fs::canonical(root / name, error);
+  if (error || !fs::is_regular_file(real, error)) return "";
+  const std::string inside = root.string() + "/";
+  if (real.string().compare(0, inside.size(), inside) != 0) return "";
+  return real.string();
+}
+
+// Refuses, before any handler, what a page on 127.0.0.1 must never answer: a Host other than 127.0.0.1 or
+// localhost at the served port (DNS rebinding: a page of another site whose name resolves here), and a Range
+// of more than one part (a few bytes of request asking for the file many times over).
+httplib::Server::HandlerResponse guard(const httplib::Request& request, httplib::Response& response, int port) {
+  const std::string host = request.get_header_value("Host");
+  const std::string at = ":" + std::to_string(port);
+  if (host != "127.0.0.1" + at && host != "localhost" + at) {
+    response.status = 403;
+    response.set_content("amt view answers only Host 127.0.0.1" + at + " or localhost" + at + "\n", "text/plain");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  if (request.get_header_value("Range").find(',') != std::string::npos) {
+    response.status = 416;
+    response.set_content("amt view answers one byte range per request\n", "text/plain");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  return httplib::Server::HandlerResponse::Unhandled;
 }
 
 void run(const ViewCommand& command) {
@@ -80,7 +143,16 @@ void run(const ViewCommand& command) {
               ": expected a viewer folder (written by amt animate --html or amt eval --viewer, with ",
               kViewerManifestName, "), found a folder without one");
     check_viewer_folder(dir);
-    AMT_CHECK(server.set_mount_point("/", dir), dir, ": expected a folder to serve, found none");
+    const fs::path root = fs::canonical(dir, error);
+    AMT_CHECK(!error, dir, ": expected a folder to serve, found an error resolving it: ", error.message());
+    server.Get(R"(/(.*))", [root](const httplib::Request& request, httplib::Response& response) {
+      const std::string path = folder_file(root, request.matches[1].str());
+      if (path.empty()) {
+        response.status = 404;
+        return;
+      }
+      serve_file(response, path, content_type(path));
+    });
     what = dir;
   } else {
     // Files: the repository's page and three.js, a manifest of one group, the files under /files/<k>/.
@@ -134,6 +206,13 @@ void run(const ViewCommand& command) {
   }
   const char* host = "127.0.0.1";
   int port = command.port;
+  // Every request names this host and port; a request whose headers are not in within 5 s is dropped, so that a
+  // few half-sent requests cannot hold the server's threads.
+  server.set_pre_routing_handler([&port](const httplib::Request& request, httplib::Response& response) {
+    return guard(request, response, port);
+  });
+  server.set_read_timeout(5, 0);
+  server.set_keep_alive_timeout(5);
   if (port == 0) {
     port = server.bind_to_any_port(host);
     AMT_CHECK(port > 0, "--port 0: expected a free port on ", host, ", found none");

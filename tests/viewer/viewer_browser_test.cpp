@@ -6,9 +6,13 @@
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -206,6 +210,72 @@ TEST(ViewCli, AFileThatIsNotAGlbIsAOneLineError) {
   EXPECT_NE(r.err.find("notes.glb: header: expected the GLB magic 'glTF'"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(dir.string() + ": expected a viewer folder"), std::string::npos) << r.err;
   EXPECT_EQ(r.status, 1);
+}
+
+// One HTTP/1.1 request to 127.0.0.1:`port` over a plain socket (no client library in the tests): the status
+// code and the body's length (-1: no answer).
+struct HttpAnswer {
+  int status = -1;
+  long body = -1;
+};
+HttpAnswer http_get(int port, const std::string& path, const std::string& headers = "") {
+  HttpAnswer answer;
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return answer;
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  timeval timeout{10, 0};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0) {
+    const std::string host = headers.find("Host:") == std::string::npos
+                                 ? "Host: 127.0.0.1:" + std::to_string(port) + "\r\n"
+                                 : "";
+    const std::string request = "GET " + path + " HTTP/1.1\r\n" + host + headers + "Connection: close\r\n\r\n";
+    if (send(fd, request.data(), request.size(), 0) == ssize_t(request.size())) {
+      std::string reply;
+      char buffer[65536];
+      for (ssize_t n; (n = recv(fd, buffer, sizeof(buffer), 0)) > 0;) reply.append(buffer, size_t(n));
+      const size_t space = reply.find(' '), end = reply.find("\r\n\r\n");
+      if (space != std::string::npos && end != std::string::npos) {
+        answer.status = std::atoi(reply.c_str() + space + 1);
+        answer.body = long(reply.size() - end - 4);
+      }
+    }
+  }
+  close(fd);
+  return answer;
+}
+
+// `amt view DIR` serves only the folder's own regular files (no link out of it, no dotfiles), only to requests
+// that name 127.0.0.1 or localhost at its port, and one byte range per request.
+TEST(ViewServer, AFolderServesItsOwnFilesOnlyToLocalPages) {
+  const fs::path dir = write_animate_folder(test::temp_dir("view_server") / "viewer");
+  const fs::path outside = dir.parent_path() / "outside.txt";
+  std::ofstream(outside) << "a file of the user's\n";
+  fs::create_symlink(outside, dir / "link");
+  fs::create_symlink(dir / "index.html", dir / "inside_link.html");  // a link that stays inside: served
+  std::ofstream(dir / ".hidden") << "dotfile\n";
+  const ViewServer server({dir.string()});
+  ASSERT_FALSE(server.url().empty()) << server.printed();
+  const int port = std::atoi(server.url().c_str() + server.url().rfind(':') + 1);
+  ASSERT_GT(port, 0) << server.url();
+  const long page = long(fs::file_size(dir / "index.html"));
+  EXPECT_EQ(http_get(port, "/").status, 200);
+  EXPECT_EQ(http_get(port, "/index.html").body, page);
+  EXPECT_EQ(http_get(port, "/inside_link.html").body, page);
+  EXPECT_EQ(http_get(port, "/prediction.glb").body, long(fs::file_size(dir / "prediction.glb")));
+  EXPECT_EQ(http_get(port, "/link").status, 404);         // a link out of the folder
+  EXPECT_EQ(http_get(port, "/.hidden").status, 404);      // a dotfile
+  EXPECT_EQ(http_get(port, "/../outside.txt").status, 404);  // climbing out
+  EXPECT_EQ(http_get(port, "/three").status, 404);        // a folder
+  EXPECT_EQ(http_get(port, "/index.html", "Host: localhost:" + std::to_string(port) + "\r\n").status, 200);
+  EXPECT_EQ(http_get(port, "/index.html", "Host: attacker.example:" + std::to_string(port) + "\r\n").status, 403);
+  const HttpAnswer one = http_get(port, "/prediction.glb", "Range: bytes=0-3\r\n");
+  EXPECT_EQ(one.status, 206);
+  EXPECT_EQ(one.body, 4);
+  EXPECT_EQ(http_get(port, "/prediction.glb", "Range: bytes=0-3,0-3,0-3\r\n").status, 416);
 }
 
 }  // namespace
