@@ -142,7 +142,7 @@ void run(const ViewCommand& command) {
     AMT_CHECK(fs::is_regular_file(fs::path(dir) / kViewerManifestName, error), dir,
               ": expected a viewer folder (written by amt animate --html or amt eval --viewer, with ",
               kViewerManifestName, "), found a folder without one");
-    check_viewer_folder(dir);
+    check_viewer_folder(dir, /*to_write=*/false);
     const fs::path root = fs::canonical(dir, error);
     AMT_CHECK(!error, dir, ": expected a folder to serve, found an error resolving it: ", error.message());
     server.Get(R"(/(.*))", [root](const httplib::Request& request, httplib::Response& response) {

@@ -54,7 +54,7 @@ std::vector<std::pair<std::string, std::string>> viewer_page_files(const std::st
   return files;
 }
 
-void check_viewer_folder(const std::string& dir) {
+void check_viewer_folder(const std::string& dir, bool to_write) {
   std::error_code error;
   const fs::file_status status = fs::symlink_status(dir, error);
   if (!fs::exists(status)) return;
@@ -73,6 +73,13 @@ void check_viewer_folder(const std::string& dir) {
   }
   AMT_CHECK(format == "amt-viewer", dir, ": expected an empty folder or a viewer folder amt wrote (", kViewerManifestName,
             " of format amt-viewer), found other files: name a new folder");
+  if (!to_write) return;
+  // recursive_directory_iterator does not follow links: each is seen as the link it is.
+  for (fs::recursive_directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
+    AMT_CHECK(!it->is_symlink(error), it->path().string(),
+              ": a symbolic link inside the viewer folder: amt never writes through one (it would replace the file "
+              "it points to); remove it or name a new folder");
+  }
 }
 
 void write_viewer_folder(const std::string& dir, const std::string& viewer_dir, const ViewerManifest& manifest) {

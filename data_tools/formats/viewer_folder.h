@@ -51,8 +51,10 @@ std::vector<std::pair<std::string, std::string>> viewer_page_files(const std::st
 
 /// Checks, before any work, that `dir` may become a viewer folder: it does not exist, is empty, or holds a
 /// viewer.json of format "amt-viewer" (a folder amt wrote before, whose files are replaced); anything else
-/// (a file, a folder of the user's) is refused with amt::Error naming it. Creates nothing.
-void check_viewer_folder(const std::string& dir);
+/// (a file, a folder of the user's) is refused with amt::Error naming it. With `to_write`, a symbolic link
+/// anywhere inside it is refused too, naming it: a writer would follow it and replace a file elsewhere
+/// (`amt view`, which only reads, passes false and refuses links when serving). Creates nothing.
+void check_viewer_folder(const std::string& dir, bool to_write = true);
 
 /// Writes the page (viewer_page_files) and the manifest into `dir` (created when missing), each file to a
 /// temporary name and renamed. The GLBs are the caller's: written into `dir` before or after.

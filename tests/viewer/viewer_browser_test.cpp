@@ -202,6 +202,24 @@ TEST(ViewerFolder, AFolderOfTheUsersIsRefusedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(dir / "viewer.json"));
 }
 
+// A viewer folder amt wrote, with a symbolic link put inside it (its three/ folder pointing at the user's own
+// folder): rewriting it is refused before any work, naming the link, and the user's file is untouched.
+TEST(ViewerFolder, ALinkInsideAViewerFolderIsRefusedAndNeverWrittenThrough) {
+  const fs::path dir = write_animate_folder(test::temp_dir("viewer_link") / "viewer");
+  const fs::path users = dir.parent_path() / "users";
+  fs::create_directories(users / "build");
+  std::ofstream(users / "build" / "three.module.js") << "keep me";
+  fs::remove_all(dir / "three");
+  fs::create_directory_symlink(users, dir / "three");
+  const test::CommandResult r = test::run_command(amt_command(
+      {"animate", "--character", "generated:7:2000", "--motion", std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh",
+       "--frames", "4", "--html", dir.string(), "--bind", "none", "--threads", "1", "--quiet"}));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find((dir / "three").string() + ": a symbolic link inside the viewer folder"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(test::read_file_bytes(users / "build" / "three.module.js"), "keep me");
+}
+
 TEST(ViewCli, AFileThatIsNotAGlbIsAOneLineError) {
   const fs::path dir = test::temp_dir("view_not_glb");
   std::ofstream(dir / "notes.glb") << "these are notes, not a binary glTF";
