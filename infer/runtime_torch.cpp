@@ -394,7 +394,18 @@ AnimateSummary animate(const AnimateOptions& o) {
   if (!o.out.empty()) check_output_writable(o.out);
   const std::string prediction_glb = (html / "prediction.glb").string(),
                     skinning_glb = (html / "skinning.glb").string();
-  if (!o.html_dir.empty()) check_output_writable(prediction_glb), check_output_writable(skinning_glb);
+  if (!o.html_dir.empty()) {
+    check_output_writable(prediction_glb), check_output_writable(skinning_glb);
+    // The viewer folder's manifest and page go first: the default bind cache (without --out) lives in the folder,
+    // and a folder holding it but no manifest would not be amt's. A run that fails later leaves the page without
+    // GLBs, which the next run replaces.
+    ViewerManifest manifest;
+    manifest.title = character.name + " · " + source.name;
+    manifest.groups.push_back(
+        {"amt animate: the prediction beside rigid skinning (apparel glued to its anchor)",
+         {{"prediction.glb", "prediction", "prediction"}, {"skinning.glb", "skinning", "skinning"}}});
+    write_viewer_folder(o.html_dir, o.viewer_dir, manifest);
+  }
   s.bind_path = o.bind_path.empty()     ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
@@ -423,12 +434,6 @@ AnimateSummary animate(const AnimateOptions& o) {
   if (!o.out.empty()) writer = open_frame_writer(o.out, info);
   MatrixXfR skinning_weights;
   if (!o.html_dir.empty()) {
-    ViewerManifest manifest;
-    manifest.title = character.name + " · " + source.name;
-    manifest.groups.push_back(
-        {"amt animate: the prediction beside rigid skinning (apparel glued to its anchor)",
-         {{"prediction.glb", "prediction", "prediction"}, {"skinning.glb", "skinning", "skinning"}}});
-    write_viewer_folder(o.html_dir, o.viewer_dir, manifest);
     html_prediction = open_frame_writer(prediction_glb, info);
     html_skinning = open_frame_writer(skinning_glb, info);
     skinning_weights = anchor_skinning_weights(session.bound());

@@ -220,6 +220,24 @@ TEST(ViewerFolder, ALinkInsideAViewerFolderIsRefusedAndNeverWrittenThrough) {
   EXPECT_EQ(test::read_file_bytes(users / "build" / "three.module.js"), "keep me");
 }
 
+// `--html DIR` without `--out`: the bind cache lives in the folder (DIR/prediction.bind), and a second run
+// replaces the folder and loads the cache instead of refusing a folder that holds it.
+TEST(ViewerFolder, HtmlWithoutOutKeepsItsBindCacheInTheFolderAndRunsAgain) {
+  const fs::path dir = test::temp_dir("viewer_html_only") / "viewer";
+  const std::vector<std::string> args = {
+      "animate", "--character", "generated:7:2000", "--motion", std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh",
+      "--frames", "4", "--html", dir.string(), "--threads", "1"};
+  const test::CommandResult first = test::run_command(amt_command(args));
+  ASSERT_EQ(first.status, 0) << first.err;
+  EXPECT_NE(first.out.find("computed, cached in " + (dir / "prediction.bind").string()), std::string::npos)
+      << first.out;
+  for (const char* file : {"viewer.json", "index.html", "prediction.glb", "skinning.glb", "prediction.bind"})
+    EXPECT_TRUE(fs::is_regular_file(dir / file)) << file;
+  const test::CommandResult second = test::run_command(amt_command(args));
+  ASSERT_EQ(second.status, 0) << second.err;
+  EXPECT_NE(second.out.find("cache hit: " + (dir / "prediction.bind").string()), std::string::npos) << second.out;
+}
+
 TEST(ViewCli, AFileThatIsNotAGlbIsAOneLineError) {
   const fs::path dir = test::temp_dir("view_not_glb");
   std::ofstream(dir / "notes.glb") << "these are notes, not a binary glTF";
