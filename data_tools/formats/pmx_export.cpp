@@ -307,6 +307,7 @@ class PmxWriter {
       const PmxBone& b = m_.bones[n];
       const int64_t i = static_cast<int64_t>(n);
       names(b);
+      mark({"bones", i, "position"});
       out_.vec3(b.position);
       bone_index(b.parent, {"bones", i, "parent"});
       out_.i32(b.layer);
@@ -377,6 +378,7 @@ class PmxWriter {
       out_.u8(static_cast<uint8_t>(r.shape));
       mark({"rigid_bodies", i, "size"});
       out_.vec3(r.size);
+      mark({"rigid_bodies", i, "position"});
       out_.vec3(r.position);
       out_.vec3(r.rotation);
       mark({"rigid_bodies", i, "mass"});
@@ -394,6 +396,7 @@ class PmxWriter {
       out_.u8(static_cast<uint8_t>(j.type));
       body_index(j.rigid_body_a, {"joints", i, "rigid_body_a"});
       body_index(j.rigid_body_b, {"joints", i, "rigid_body_b"});
+      mark({"joints", i, "position"});
       for (const Eigen::Vector3f* v : {&j.position, &j.rotation, &j.linear_min, &j.linear_max, &j.angular_min,
                                        &j.angular_max, &j.spring_linear, &j.spring_angular}) {
         out_.vec3(*v);

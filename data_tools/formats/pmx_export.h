@@ -72,8 +72,9 @@ Eigen::Vector3f pmx_euler_angles(const Eigen::Matrix3f& R);
 /// "faces", "textures", "materials", "bones", "morphs", "display_frames", "rigid_bodies", "joints", and
 /// "soft_bodies" in 2.1), "end_of_joints", every index field ("faces[f][k]", "vertices[i].bones[k]",
 /// "bones[i].parent", "bones[i].ik.target", "rigid_bodies[i].bone", "joints[i].rigid_body_a", ...), and
-/// "vertices[i].position", "vertices[i].bones" (the first bone index), "bones[i].ik.links", "rigid_bodies[i].size",
-/// "rigid_bodies[i].mass". For tests that damage a file at a known field.
+/// "vertices[i].position", "vertices[i].bones" (the first bone index), "bones[i].position", "bones[i].ik.links",
+/// "rigid_bodies[i].size", "rigid_bodies[i].position", "rigid_bodies[i].mass", "joints[i].position". For tests
+/// that damage a file at a known field.
 using PmxFieldOffsets = std::map<std::string, size_t>;
 
 /// The PMX file of `model` as bytes; fills `offsets` when given. Encodes what fits the format, also indices

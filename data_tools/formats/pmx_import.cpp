@@ -289,6 +289,7 @@ class PmxParser {
     read_faces();
     // Finite but absurd positions (a flipped exponent byte) stop here, in the file's own units.
     check_plausible_extent(TriMesh{model_.vertices.positions, model_.faces}, model_.source);
+    if (model_.vertices.positions.rows() > 0) reach_ = model_.vertices.positions.cwiseAbs().maxCoeff();
     read_textures();
     read_materials();
     read_bones();
@@ -462,7 +463,7 @@ class PmxParser {
       PmxBone& b = model_.bones[static_cast<size_t>(i)];
       b.name = in_.text({"bones", i, "name"});
       b.name_english = in_.text({"bones", i, "name_english"});
-      b.position = in_.vec3({"bones", i, "position"});
+      b.position = plausible({"bones", i, "position"}, "position");
       parent_at_[static_cast<size_t>(i)] = in_.offset();
       b.parent = in_.index({"bones", i, "parent"}, bi, n, true);
       if (b.parent == i) {
@@ -640,16 +641,18 @@ class PmxParser {
       }
       r.shape = static_cast<PmxShape>(shape);
       at = in_.offset();
-      r.size = in_.vec3({"rigid_bodies", i, "size"});
+      r.size = plausible({"rigid_bodies", i, "size"}, "size");
       if ((r.size.array() < 0).any()) {
         in_.fail_at(at, {"rigid_bodies", i, "size"}, "expected sizes >= 0, found ", r.size.x(), " ", r.size.y(), " ",
                     r.size.z());
       }
-      r.position = in_.vec3({"rigid_bodies", i, "position"});
+      r.position = plausible({"rigid_bodies", i, "position"}, "position");
       r.rotation = in_.vec3({"rigid_bodies", i, "rotation"});
       at = in_.offset();
       r.mass = in_.finite_f32({"rigid_bodies", i, "mass"});
-      if (r.mass < 0) in_.fail_at(at, {"rigid_bodies", i, "mass"}, "expected a mass >= 0, found ", r.mass);
+      if (r.mass < 0 || r.mass > kMaxMass) {
+        in_.fail_at(at, {"rigid_bodies", i, "mass"}, "expected a mass in [0, ", kMaxMass, "], found ", r.mass);
+      }
       r.linear_damping = in_.finite_f32({"rigid_bodies", i, "linear_damping"});
       r.angular_damping = in_.finite_f32({"rigid_bodies", i, "angular_damping"});
       r.restitution = in_.finite_f32({"rigid_bodies", i, "restitution"});
@@ -683,7 +686,7 @@ class PmxParser {
       j.type = static_cast<PmxJointType>(type);
       j.rigid_body_a = in_.index({"joints", i, "rigid_body_a"}, ri, body_count, true);
       j.rigid_body_b = in_.index({"joints", i, "rigid_body_b"}, ri, body_count, true);
-      j.position = in_.vec3({"joints", i, "position"});
+      j.position = plausible({"joints", i, "position"}, "position");
       j.rotation = in_.vec3({"joints", i, "rotation"});
       j.linear_min = in_.vec3({"joints", i, "linear_min"});
       j.linear_max = in_.vec3({"joints", i, "linear_max"});
@@ -713,8 +716,28 @@ class PmxParser {
     }
   }
 
+  // Physics and bones beyond this many times the model's reach (its largest vertex coordinate) are a damaged
+  // file (a flipped exponent byte), not a model: the simulation would write them into the output. Masses beyond
+  // kMaxMass likewise (MMD models use 0.1 to 10).
+  static constexpr float kMaxReaches = 10.0f;
+  static constexpr float kMaxMass = 1e6f;
+
+  // A vec3 (`what`: "position" or "size") within kMaxReaches reaches of the origin; any finite value on a model
+  // without vertices.
+  Eigen::Vector3f plausible(const Field& field, const char* what) {
+    const size_t at = in_.offset();
+    const Eigen::Vector3f v = in_.vec3(field);
+    const float bound = kMaxReaches * reach_;
+    if (reach_ > 0 && v.cwiseAbs().maxCoeff() > bound) {
+      in_.fail_at(at, field, "expected a ", what, " within ", bound, " of the origin (", kMaxReaches,
+                  " times the model's largest vertex coordinate), found ", v.x(), " ", v.y(), " ", v.z());
+    }
+    return v;
+  }
+
   Reader in_;
   PmxModel model_;
+  float reach_ = 0;  // the largest vertex coordinate, file units
   size_t vertices_at_ = 0;         // offset of the first vertex
   std::vector<size_t> parent_at_;  // offset of each bone's parent field
 };

@@ -922,6 +922,31 @@ TEST(PmxErrors, AbsurdPositionIsRejected) {
                             "at vertex 2");
 }
 
+// Finite but absurd physics and bones (a flipped exponent byte): refused by name, where the simulation would
+// have written them into the ground truth and the output. The bound is 10 times the largest vertex coordinate.
+TEST(PmxErrors, AbsurdPhysicsAndBonePositionsAreRejected) {
+  const PmxModel model = sample_model(false);
+  const Written w = write_with(model, WriteOptions());
+  const float reach = model.vertices.positions.cwiseAbs().maxCoeff();
+  for (const char* field : {"rigid_bodies[1].position", "rigid_bodies[0].size", "joints[0].position",
+                            "bones[1].position"}) {
+    std::vector<uint8_t> b = w.bytes;
+    patch_f32(b, w.offsets.at(field), 1e30f);
+    const std::string error = parse_error(b);
+    EXPECT_NE(error.find(std::string(field) + ": expected a "), std::string::npos) << error;
+    EXPECT_NE(error.find("within " + std::to_string(int(10 * reach))), std::string::npos) << error;
+    EXPECT_NE(error.find("found 1e+30"), std::string::npos) << error;
+    // Just inside the bound parses.
+    b = w.bytes;
+    patch_f32(b, w.offsets.at(field), 9.5f * reach);
+    EXPECT_NO_THROW(parse(b)) << field;
+  }
+  std::vector<uint8_t> b = w.bytes;
+  patch_f32(b, w.offsets.at("rigid_bodies[1].mass"), 1e9f);
+  EXPECT_NE(parse_error(b).find("rigid_bodies[1].mass: expected a mass in [0, 1e+06], found 1e+09"),
+            std::string::npos);
+}
+
 TEST(PmxErrors, NonFiniteAndOutOfRangeNumbers) {
   const Written w = write_with(sample_model(false), WriteOptions());
   std::vector<uint8_t> b = w.bytes;
@@ -940,7 +965,7 @@ TEST(PmxErrors, NonFiniteAndOutOfRangeNumbers) {
                                 ": rigid_bodies[1].mass: expected a finite number, found nan");
   b = w.bytes;
   patch_f32(b, w.offsets.at("rigid_bodies[1].mass"), -1);
-  EXPECT_NE(parse_error(b).find("rigid_bodies[1].mass: expected a mass >= 0, found -1"), std::string::npos);
+  EXPECT_NE(parse_error(b).find("rigid_bodies[1].mass: expected a mass in [0, 1e+06], found -1"), std::string::npos);
   b = w.bytes;
   b[w.offsets.at("vertices[3].bones") - 1] = 7;  // deform type
   EXPECT_NE(parse_error(b).find("vertices[3].deform: expected 0 (BDEF1)"), std::string::npos);
