@@ -84,6 +84,15 @@ int64_t first_exploded(const float* P, int64_t n, const Eigen::Vector3f& root, f
 
 }  // namespace
 
+void check_frame_output(const MatrixX3f& V, const Eigen::Vector3f& root, float bound, int64_t frame,
+                        const char* stage) {
+  const int64_t i = first_exploded(V.data(), V.rows(), root, bound);
+  if (i < 0) return;
+  fail("frame ", frame, ": ", stage, ": expected finite positions within ", bound,
+       " m of the root joint (10 rest sizes), found ", V(i, 0), " ", V(i, 1), " ", V(i, 2), " at vertex ", i,
+       " (a damaged model or an absurd motion; nothing was written)");
+}
+
 void RuntimeSession::check_output(const float* P, int64_t n, const Transforms& joint_transforms,
                                   const char* stage) const {
   const int64_t i = first_exploded(P, n, apply(joint_transforms.at(0), root_rest_), output_bound_);
@@ -301,10 +310,16 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
 
   FrameLoop loop(o, character.mesh, s.frames);
   MatrixX3f V;
+  // Every frame is checked before it is written, as on the learned path: a rigid body the simulation threw away
+  // stops the run instead of reaching the output.
+  const Eigen::Vector3f extent = character.mesh.V.colwise().maxCoeff() - character.mesh.V.colwise().minCoeff();
+  const float bound = 10.0f * std::max(extent.norm(), 0.1f);
+  const Eigen::Vector3f root_rest = character.skeleton.rest_joints.row(0).transpose();
   for (int t = 0; t < s.frames; ++t) {
     const auto frame_start = Clock::now();
     const Transforms T = t == 0 ? first : player.frame(t);
     physics.step(T, V);
+    check_frame_output(V, apply(T.at(0), root_rest), bound, t, "PMX physics");
     s.mean.model += seconds_since(frame_start);
     const auto out_start = Clock::now();
     writer->append(V, T);

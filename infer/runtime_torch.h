@@ -69,6 +69,11 @@ class RuntimeSession {
   void check_output(const float* P, int64_t n, const Transforms& joint_transforms, const char* stage) const;
 };
 
+/// Throws amt::Error naming frame `frame` and `stage` when a row of V (#V, 3) is non-finite or farther than `bound`
+/// metres from `root` (the frame's root joint): the check every path of `amt animate` runs on a frame before it is
+/// written (RuntimeSession::step, and the PMX physics of --apparel physics).
+void check_frame_output(const MatrixX3f& V, const Eigen::Vector3f& root, float bound, int64_t frame, const char* stage);
+
 /// Rigid skinning of every vertex (#V by J, rows sum to 1), the "skinning" the viewer shows beside a
 /// prediction: the bound body weights on body rows and, on apparel rows, the weights of the apparel
 /// module's anchor (apparel_anchor_weights: the apparel glued to the body vertex it follows).

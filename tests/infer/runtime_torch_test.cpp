@@ -161,6 +161,26 @@ TEST(RuntimeSession, ExplodedOutputNamesTheFrameAndTheStage) {
   }
 }
 
+// The per-frame check every apparel path runs before writing (the learned path through RuntimeSession, the PMX
+// physics through check_frame_output directly): a NaN or a vertex beyond the bound names the frame, the stage and
+// the vertex; a frame within it passes.
+TEST(CheckFrameOutput, NamesTheFrameTheStageAndTheVertex) {
+  MatrixX3f V(3, 3);
+  V << 0, 1, 0, 0.5f, 1, 0, 0, 2, 0;
+  const Eigen::Vector3f root(0, 1, 0);
+  EXPECT_NO_THROW(check_frame_output(V, root, 2.0f, 4, "PMX physics"));
+  V(2, 1) = 1e29f;
+  EXPECT_EQ(test::error_of([&] { check_frame_output(V, root, 2.0f, 4, "PMX physics"); })
+                .rfind("frame 4: PMX physics: expected finite positions within 2 m of the root joint (10 rest sizes), "
+                       "found 0 1e+29 0 at vertex 2",
+                       0),
+            0u);
+  V(2, 1) = 2;
+  V(1, 0) = std::nanf("");
+  EXPECT_NE(test::error_of([&] { check_frame_output(V, root, 2.0f, 0, "PMX physics"); }).find("at vertex 1"),
+            std::string::npos);
+}
+
 TEST(Animate, GlbHasTheMotionsFramesAndFpsAndPassesTheValidator) {
   const Fixture f = make_fixture("animate_glb");
   AnimateOptions o = options_for(f, (f.dir / "out" / "walk.glb").string());
