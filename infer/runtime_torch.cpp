@@ -84,22 +84,28 @@ int64_t first_exploded(const float* P, int64_t n, const Eigen::Vector3f& root, f
 
 }  // namespace
 
-void check_frame_output(const MatrixX3f& V, const Eigen::Vector3f& root, float bound, int64_t frame,
-                        const char* stage) {
-  const int64_t i = first_exploded(V.data(), V.rows(), root, bound);
+namespace {
+
+// Throws naming frame `frame`, `stage` and the first row of P (n, 3) that is non-finite or farther than `bound` from
+// `root`.
+void check_rows(const float* P, int64_t n, const Eigen::Vector3f& root, float bound, int64_t frame, const char* stage) {
+  const int64_t i = first_exploded(P, n, root, bound);
   if (i < 0) return;
   fail("frame ", frame, ": ", stage, ": expected finite positions within ", bound,
-       " m of the root joint (10 rest sizes), found ", V(i, 0), " ", V(i, 1), " ", V(i, 2), " at vertex ", i,
+       " m of the root joint (10 rest sizes), found ", P[3 * i], " ", P[3 * i + 1], " ", P[3 * i + 2], " at vertex ", i,
        " (a damaged model or an absurd motion; nothing was written)");
+}
+
+}  // namespace
+
+void check_frame_output(const MatrixX3f& V, const Eigen::Vector3f& root, float bound, int64_t frame,
+                        const char* stage) {
+  check_rows(V.data(), V.rows(), root, bound, frame, stage);
 }
 
 void RuntimeSession::check_output(const float* P, int64_t n, const Transforms& joint_transforms,
                                   const char* stage) const {
-  const int64_t i = first_exploded(P, n, apply(joint_transforms.at(0), root_rest_), output_bound_);
-  if (i < 0) return;
-  fail("frame ", frame_, ": ", stage, ": expected finite positions within ", output_bound_,
-       " m of the root joint (10 rest sizes), found ", P[3 * i], " ", P[3 * i + 1], " ", P[3 * i + 2], " at vertex ", i,
-       " (a damaged model or an absurd motion; nothing was written)");
+  check_rows(P, n, apply(joint_transforms.at(0), root_rest_), output_bound_, frame_, stage);
 }
 
 FrameTimes RuntimeSession::step(const Transforms& joint_transforms, MatrixX3f& V, PenetrationReport* report) {
