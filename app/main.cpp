@@ -55,8 +55,9 @@ void prefer_passive_openmp_waiting(char** argv) {
   execv("/proc/self/exe", argv);  // returns only on failure: then run on with the default policy
 }
 
-// SIGINT and SIGTERM remove the temporaries of the run they interrupt (data_tools/formats/temporary_registry.h)
-// and end the process with 128 + the signal, as a shell reports a process killed by it.
+// SIGINT, SIGTERM, SIGHUP (a closed terminal or ssh session) and SIGQUIT remove the temporaries of the run they
+// interrupt (data_tools/formats/temporary_registry.h) and end the process with 128 + the signal, as a shell reports
+// a process killed by it (SIGQUIT without its core dump).
 //
 // The signals are blocked in the main thread before it starts any thread, so every thread amt starts
 // (LibTorch's, OpenMP's, the sample loaders) inherits the block, and one dedicated thread takes them
@@ -70,11 +71,22 @@ void forward_to_signal_thread(int signal) {
   pthread_kill(g_signal_thread, signal);
 }
 
+constexpr int kTerminationSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+
+const char* signal_name(int signal) {
+  switch (signal) {
+    case SIGINT: return "SIGINT";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    case SIGQUIT: return "SIGQUIT";
+    default: return "a signal";
+  }
+}
+
 void remove_temporaries_on_termination_signals() {
   sigset_t signals;
   sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
+  for (const int signal : kTerminationSignals) sigaddset(&signals, signal);
   if (pthread_sigmask(SIG_BLOCK, &signals, nullptr) != 0) return;
   std::thread waiter([signals] {
     int signal = 0;
@@ -83,7 +95,7 @@ void remove_temporaries_on_termination_signals() {
     const int removed = amt::remove_registered_temporaries(/*hold=*/true);
     char line[160];
     const int n = std::snprintf(line, sizeof(line), "\namt: stopped by %s; removed %d temporary file%s\n",
-                                signal == SIGINT ? "SIGINT" : "SIGTERM", removed, removed == 1 ? "" : "s");
+                                signal_name(signal), removed, removed == 1 ? "" : "s");
     if (n > 0) (void)!write(STDERR_FILENO, line, size_t(n));
     _exit(128 + signal);  // no exit handlers: other threads may be inside HDF5 or LibTorch
   });
@@ -94,8 +106,7 @@ void remove_temporaries_on_termination_signals() {
   forward.sa_handler = forward_to_signal_thread;
   sigemptyset(&forward.sa_mask);
   forward.sa_flags = SA_RESTART;
-  sigaction(SIGINT, &forward, nullptr);
-  sigaction(SIGTERM, &forward, nullptr);
+  for (const int signal : kTerminationSignals) sigaction(signal, &forward, nullptr);
 }
 
 // The deepest subcommand the command line reached (the program itself when none).

@@ -119,6 +119,27 @@ TEST(AnimateCli, SigtermMidRunRemovesTheTemporariesAndKeepsTheGoodOutput) {
   EXPECT_EQ(test::read_file_bytes(out), good);
 }
 
+// A closed terminal (SIGHUP) and SIGQUIT stop a run as SIGTERM does: temporaries removed, the earlier output kept.
+TEST(AnimateCli, SighupAndSigquitMidRunRemoveTheTemporaries) {
+  const test::RuntimeFixture f = test::make_runtime_fixture("cli_sighup");
+  const std::string out = (f.dir / "walk.glb").string();
+  for (const int signal : {SIGHUP, SIGQUIT}) {
+    const std::string name = signal == SIGHUP ? "SIGHUP" : "SIGQUIT";
+    const std::string log = (f.dir / (name + ".txt")).string();
+    const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, signal, [&] {
+      std::error_code e;
+      return fs::file_size(out + ".frames.tmp", e) > 0 && !e;
+    });
+    EXPECT_EQ(code, 128 + signal) << test::read_file_bytes(log);
+    EXPECT_NE(test::read_file_bytes(log).find("amt: stopped by " + name + "; removed 1 temporary file"),
+              std::string::npos)
+        << test::read_file_bytes(log);
+    EXPECT_FALSE(fs::exists(out + ".frames.tmp")) << name;
+    EXPECT_FALSE(fs::exists(out + ".tmp")) << name;
+    EXPECT_FALSE(fs::exists(out)) << name;  // nothing was there before: nothing half-written is left
+  }
+}
+
 TEST(AnimateCli, SigintMidRunRemovesTheTemporaryObjFolder) {
   const test::RuntimeFixture f = test::make_runtime_fixture("cli_sigint");
   const std::string out = (f.dir / "frames").string();
