@@ -1,5 +1,5 @@
 #pragma once
-// Procedural apparel for generated bodies, built as MMD artists build it (DESIGN.md section 6): skirts, long hair,
+// Procedural apparel for generated bodies, built as MMD artists build it (README, "The dataset builder"): skirts, long hair,
 // twin tails, capes, sleeves, ribbons and coat tails, each a mesh skinned to chains of apparel bones that carry
 // dynamic rigid bodies, hung from the body's bones by spring 6-DOF joints; and kinematic collision capsules on the
 // body bones that approximate the generated body surface. The result is a DressedCharacter: the dressed mesh, its
