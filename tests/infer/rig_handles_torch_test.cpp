@@ -9,6 +9,7 @@
 #include <string>
 
 #include "data_tools/formats/pmx_export.h"
+#include "infer/bind_cache_torch.h"
 #include "infer/character_input.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/test_support.h"
@@ -93,6 +94,23 @@ TEST(RigHandles, APmxModelsPhysicsDrivenBonesBecomeTheHandles) {
   o.apparel_bones = nullptr;
   const BoundCharacter automatic = bind_character(bundle, V, F, joints, o);
   EXPECT_GT(automatic.handle_rows.size(0), 0);
+}
+
+// The bind cache keys on the bones: switching --apparel-handles recomputes the bind instead of loading the other.
+TEST(RigHandles, TheBindCacheTellsRigHandlesFromAutomaticOnes) {
+  const RiggedPmx r = rigged_pmx("rig_handles_cache");
+  const ModelBundle bundle = load_model_bundle(r.model);
+  const std::string cache = (r.dir / "humanoid.bind").string();
+  const auto& c = r.character;
+  const BindResult rig = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, c.rig_bones);
+  EXPECT_FALSE(rig.cache_hit);
+  EXPECT_EQ(rig.bound.handle_rows.size(0), 3);
+  const BindResult automatic = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr);
+  EXPECT_FALSE(automatic.cache_hit);
+  EXPECT_NE(automatic.bound.handle_rows.size(0), 3);
+  const BindResult again = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr);
+  EXPECT_TRUE(again.cache_hit);
+  EXPECT_TRUE(at::equal(again.bound.handle_rows, automatic.bound.handle_rows));
 }
 
 TEST(RigHandles, AnimateTakesTheRigsBonesWhenAskedAndNamesThemOtherwise) {
