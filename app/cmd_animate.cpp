@@ -23,7 +23,7 @@ void add_animate_command(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   auto* cmd = app.add_subcommand("animate", "Animate a character with a motion: apparel dynamics on the CPU");
   cmd->add_option("--character", o->character.spec,
-                  "Character: .glb/.gltf (rigged), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
+                  "Character: .glb/.gltf (rigged), .vrm (VRM 0.x / 1.0 avatar: its humanoid map and spring bones are used), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
                   "generated:SEED[:VERTICES]")
       ->required();
   cmd->add_option("--motion", o->motion.spec, "Motion: .bvh, .glb/.gltf animation, or data.h5:clip")->required();

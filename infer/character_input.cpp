@@ -62,16 +62,22 @@ bool body_part_name(std::string name) {
 // joint maps and that hangs in a chain (with an unmapped parent or child that is not a body part either)
 // from the mapped skeleton: hair, skirt and cape chains, VRM's secondary bones. `bones` receives the
 // number of such bones.
+// With `springs` (a VRM's spring-bone joints, per joint 0/1), those bones are the chains instead.
 std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRest& rest, const SparseWeights& w,
-                                        int* bones, std::vector<uint8_t>* chain_bones) {
+                                        const std::vector<uint8_t>& springs, int* bones,
+                                        std::vector<uint8_t>* chain_bones) {
   const int J = file.num_joints();
   std::vector<uint8_t> candidate(static_cast<size_t>(J), 0), chain(static_cast<size_t>(J), 0);
   const std::set<std::string> extra(rest.extra.begin(), rest.extra.end());
   for (int j = 0; j < J; ++j) candidate[j] = extra.count(file.names[j]) && !body_part_name(file.names[j]);
   *bones = 0;
-  for (int j = 0; j < J; ++j) {
-    const int p = file.parents[j];
-    if (candidate[j] && p >= 0 && candidate[p]) chain[j] = chain[p] = 1;
+  if (springs.size() == size_t(J)) {
+    chain = springs;
+  } else {
+    for (int j = 0; j < J; ++j) {
+      const int p = file.parents[j];
+      if (candidate[j] && p >= 0 && candidate[p]) chain[j] = chain[p] = 1;
+    }
   }
   for (int j = 0; j < J; ++j) *bones += chain[j];
   *chain_bones = chain;
@@ -101,6 +107,7 @@ std::shared_ptr<const ApparelBones> file_apparel_bones(const std::vector<std::st
 RuntimeCharacter load_character(const CharacterSpec& spec) {
   RuntimeCharacter c;
   SparseWeights gltf_weights;  // a skinned glTF's own weights, for its rig's apparel
+  std::vector<uint8_t> springs;  // a VRM avatar's spring-bone joints
   std::optional<JointMapFile> user_map;
   if (!spec.joint_map.empty()) user_map = read_joint_map(spec.joint_map);
   const std::string& path = spec.spec;
@@ -146,10 +153,24 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.name = std::filesystem::path(path).stem().string();
     const std::string e = lower_extension(path);
     bool has_skeleton = true;
-    if (e == ".glb" || e == ".gltf") {
+    if (e == ".glb" || e == ".gltf" || e == ".vrm") {  // a VRM avatar is a GLB
       const GltfAsset asset = read_gltf(path);
       try {
         GltfCharacter g = gltf_character(asset);
+        // A VRM avatar names its humanoid bones: they map it (under the user's own map, which wins).
+        if (std::optional<JointMapFile> vrm = gltf_vrm_joint_map(asset, g)) {
+          if (user_map) {
+            for (const auto& entry : user_map->entries) {
+              auto& e = vrm->entries;
+              e.erase(std::remove_if(e.begin(), e.end(), [&](const auto& v) { return v.first == entry.first; }),
+                      e.end());
+              e.push_back(entry);
+            }
+          }
+          user_map = std::move(vrm);
+          springs = gltf_vrm_spring_joints(asset, g);
+          c.file_kind = "VRM " + gltf_vrm_version(asset) + (gltf_vrm_version(asset) == "0" ? ".x" : ".0");
+        }
         c.mesh = std::move(g.mesh);
         c.file_skeleton = std::move(g.skeleton);
         gltf_weights = std::move(g.weights);
@@ -198,7 +219,7 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
                 ": joints: the character has no skeleton (no bones): expected --character-joints FILE");
       has_skeleton = !model.bones.empty();
     } else {
-      fail(path, ": character: expected a .glb, .gltf, .obj, .pmx file or file.h5:character, found extension '", e,
+      fail(path, ": character: expected a .glb, .gltf, .vrm, .obj, .pmx file or file.h5:character, found extension '", e,
            "'");
     }
     if (!spec.joints.empty()) {
@@ -211,19 +232,33 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
   AMT_CHECK(c.file_skeleton.num_joints() > 0, path,
             ": joints: the character has no skeleton: expected a rigged file or --character-joints FILE");
   c.rest = canonical_rest(c.file_skeleton, user_map, path);
+  // amt's characters face +Z with their left on +X (as the motions do); one that faces -Z (its left hip on -X:
+  // VRM 0.x avatars, some glTF exports) would move mirrored through every motion, so it turns half a turn about Y.
+  if (c.rest.skeleton.rest_joints(kLeftHip, 0) < c.rest.skeleton.rest_joints(kRightHip, 0)) {
+    for (MatrixX3f* points : {&c.mesh.V, &c.file_skeleton.rest_joints}) {
+      points->col(0) *= -1.0f;
+      points->col(2) *= -1.0f;
+    }
+    c.rest = canonical_rest(c.file_skeleton, user_map, path);
+    c.turned = true;
+  }
   c.skeleton = c.rest.skeleton;
   if (gltf_weights.num_vertices() == c.mesh.num_vertices()) {
     int chain_bones = 0;
     std::vector<uint8_t> chain;
-    std::vector<uint8_t> rig = chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, &chain_bones, &chain);
+    std::vector<uint8_t> rig =
+        chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, springs, &chain_bones, &chain);
     const auto count = std::count(rig.begin(), rig.end(), uint8_t(1));
     if (count > 0) {
       MatrixX3f heads(c.file_skeleton.num_joints(), 3);
       for (int j = 0; j < c.file_skeleton.num_joints(); ++j) heads.row(j) = c.file_skeleton.rest_joints.row(j);
       c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain);
       c.rig_apparel_mask = std::move(rig);
-      c.rig_apparel = "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +
-                      " bones outside the canonical map that hang in chains from it";
+      c.rig_apparel = springs.empty() ? "glTF chains: " + std::to_string(count) + " vertices on " +
+                                            std::to_string(chain_bones) +
+                                            " bones outside the canonical map that hang in chains from it"
+                                      : "VRM spring bones: " + std::to_string(count) + " vertices on " +
+                                            std::to_string(chain_bones) + " bones that its springs move";
     }
   }
   return c;

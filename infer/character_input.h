@@ -60,6 +60,12 @@ struct RuntimeCharacter {
   /// skeleton (rig_apparel_bones); null when the character's rig names none (a generated character: none kept).
   std::shared_ptr<const ApparelBones> rig_bones;
   std::string dataset, dataset_character;
+  /// What the file is beyond its extension ("VRM 0.x", "VRM 1.0"; "" otherwise): a VRM avatar's humanoid map
+  /// maps its skeleton and its spring bones are its rig's apparel.
+  std::string file_kind;
+  /// True when the file's character faced -Z (its left hip on -X, as VRM 0.x avatars stand) and was turned half
+  /// a turn about Y to face +Z as amt's motions do; mesh and skeletons are the turned ones.
+  bool turned = false;
 };
 
 /// Splits "file.h5:name" into ("file.h5", "name") when the part before the last ':' ends in .h5 or

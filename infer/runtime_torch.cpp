@@ -243,6 +243,12 @@ void print_inputs(const RuntimeCharacter& character, const SourceMotion& source)
   } else {
     std::cerr << "animate: character " << character.rest.describe(character.file_skeleton.names) << "\n";
   }
+  if (!character.file_kind.empty())
+    std::cerr << "animate: character is a " << character.file_kind << " avatar: its humanoid map maps the skeleton"
+              << " and its spring bones name its apparel\n";
+  if (character.turned)
+    std::cerr << "animate: character faced -Z (its left hip on -X); turned half a turn about Y to face +Z as the "
+                 "motions do\n";
   std::cerr << "animate: motion " << source.name << " (" << source.motion.num_frames() << " frames at "
             << source.motion.fps << " fps)\n";
   if (!source.mapping.empty()) std::cerr << "animate: motion " << source.mapping << "\n";

@@ -1688,4 +1688,142 @@ GltfVertexAnimation gltf_vertex_animation(const GltfAsset& asset, const std::str
   return out;
 }
 
+// === VRM avatars
+
+namespace {
+
+// The extension `name` of the asset's top level, or null.
+const tinygltf::Value* top_extension(const tinygltf::Model& m, const char* name) {
+  const auto it = m.extensions.find(name);
+  return it == m.extensions.end() || !it->second.IsObject() ? nullptr : &it->second;
+}
+
+// A node index held in `value` (field `field`), checked against the file's nodes.
+int vrm_node(const tinygltf::Value& value, const tinygltf::Model& m, const std::string& src, const std::string& field) {
+  AMT_CHECK(value.IsNumber(), src, ": ", field, ": expected a node index, found ",
+            value.IsString() ? "a string" : value.IsObject() ? "an object" : "another type");
+  const double n = value.GetNumberAsDouble();
+  AMT_CHECK(n >= 0 && n < double(m.nodes.size()) && n == std::floor(n), src, ": ", field,
+            ": expected a node index in [0, ", m.nodes.size(), "), found ", n);
+  return int(n);
+}
+
+// Per skeleton joint of `character`, keyed by its node.
+std::map<int, int> joint_of_node(const GltfCharacter& character) {
+  std::map<int, int> out;
+  for (size_t j = 0; j < character.joint_nodes.size(); ++j) {
+    if (character.joint_nodes[j] >= 0) out[character.joint_nodes[j]] = int(j);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string gltf_vrm_version(const GltfAsset& asset) {
+  const tinygltf::Model& m = asset.impl().model;
+  if (top_extension(m, "VRMC_vrm")) return "1";
+  if (top_extension(m, "VRM")) return "0";
+  return "";
+}
+
+std::optional<JointMapFile> gltf_vrm_joint_map(const GltfAsset& asset, const GltfCharacter& character) {
+  const tinygltf::Model& m = asset.impl().model;
+  const std::string& src = asset.source();
+  // VRM humanoid bone -> canonical joint; the spine, chest and upper chest come from the structure.
+  static const std::map<std::string, std::string> kCanonical = {
+      {"hips", "pelvis"},
+      {"leftUpperLeg", "left_hip"},        {"rightUpperLeg", "right_hip"},
+      {"leftLowerLeg", "left_knee"},       {"rightLowerLeg", "right_knee"},
+      {"leftFoot", "left_ankle"},          {"rightFoot", "right_ankle"},
+      {"leftToes", "left_foot"},           {"rightToes", "right_foot"},
+      {"neck", "neck"},                    {"head", "head"},
+      {"leftShoulder", "left_collar"},     {"rightShoulder", "right_collar"},
+      {"leftUpperArm", "left_shoulder"},   {"rightUpperArm", "right_shoulder"},
+      {"leftLowerArm", "left_elbow"},      {"rightLowerArm", "right_elbow"},
+      {"leftHand", "left_wrist"},          {"rightHand", "right_wrist"}};
+  std::vector<std::pair<std::string, int>> bones;  // (VRM bone, node)
+  std::string base;
+  if (const tinygltf::Value* vrm1 = top_extension(m, "VRMC_vrm")) {
+    base = "extensions.VRMC_vrm.humanoid.humanBones";
+    const tinygltf::Value& humanoid = vrm1->Get("humanoid");
+    const tinygltf::Value& human = humanoid.Get("humanBones");
+    AMT_CHECK(human.IsObject(), src, ": ", base, ": expected an object {bone: {node}}, found ",
+              human.Type() == tinygltf::NULL_TYPE ? "none" : "another type");
+    for (const std::string& bone : human.Keys()) {
+      const tinygltf::Value& entry = human.Get(bone);
+      AMT_CHECK(entry.IsObject() && entry.Has("node"), src, ": ", base, ".", bone, ".node: expected a node index, ",
+                "found none");
+      bones.emplace_back(bone, vrm_node(entry.Get("node"), m, src, base + "." + bone + ".node"));
+    }
+  } else if (const tinygltf::Value* vrm0 = top_extension(m, "VRM")) {
+    base = "extensions.VRM.humanoid.humanBones";
+    const tinygltf::Value& human = vrm0->Get("humanoid").Get("humanBones");
+    AMT_CHECK(human.IsArray(), src, ": ", base, ": expected an array of {bone, node}, found ",
+              human.Type() == tinygltf::NULL_TYPE ? "none" : "another type");
+    for (size_t k = 0; k < human.ArrayLen(); ++k) {
+      const tinygltf::Value& entry = human.Get(int(k));
+      const std::string field = base + "[" + std::to_string(k) + "]";
+      AMT_CHECK(entry.IsObject() && entry.Get("bone").IsString(), src, ": ", field,
+                ".bone: expected a humanoid bone name, found none");
+      bones.emplace_back(entry.Get("bone").Get<std::string>(), vrm_node(entry.Get("node"), m, src, field + ".node"));
+    }
+  } else {
+    return std::nullopt;
+  }
+  const std::map<int, int> joint = joint_of_node(character);
+  JointMapFile map;
+  map.source = src + " (VRM humanoid)";
+  const std::vector<std::string>& names = canonical_joint_names();
+  for (const auto& [bone, node] : bones) {
+    const auto canonical = kCanonical.find(bone);
+    const auto j = joint.find(node);
+    if (canonical == kCanonical.end() || j == joint.end()) continue;
+    const int index = int(std::find(names.begin(), names.end(), canonical->second) - names.begin());
+    map.entries.emplace_back(index, character.skeleton.names[size_t(j->second)]);
+  }
+  return map;
+}
+
+std::vector<uint8_t> gltf_vrm_spring_joints(const GltfAsset& asset, const GltfCharacter& character) {
+  const tinygltf::Model& m = asset.impl().model;
+  const std::string& src = asset.source();
+  std::vector<int> roots;  // nodes a spring moves, with everything below them
+  if (const tinygltf::Value* spring = top_extension(m, "VRMC_springBone")) {
+    const tinygltf::Value& springs = spring->Get("springs");
+    for (size_t s = 0; springs.IsArray() && s < springs.ArrayLen(); ++s) {
+      const tinygltf::Value& joints = springs.Get(int(s)).Get("joints");
+      for (size_t k = 0; joints.IsArray() && k < joints.ArrayLen(); ++k) {
+        const std::string field = "extensions.VRMC_springBone.springs[" + std::to_string(s) + "].joints[" +
+                                  std::to_string(k) + "].node";
+        roots.push_back(vrm_node(joints.Get(int(k)).Get("node"), m, src, field));
+      }
+    }
+  } else if (const tinygltf::Value* vrm0 = top_extension(m, "VRM")) {
+    const tinygltf::Value& groups = vrm0->Get("secondaryAnimation").Get("boneGroups");
+    for (size_t g = 0; groups.IsArray() && g < groups.ArrayLen(); ++g) {
+      const tinygltf::Value& list = groups.Get(int(g)).Get("bones");
+      for (size_t k = 0; list.IsArray() && k < list.ArrayLen(); ++k) {
+        const std::string field =
+            "extensions.VRM.secondaryAnimation.boneGroups[" + std::to_string(g) + "].bones[" + std::to_string(k) + "]";
+        roots.push_back(vrm_node(list.Get(int(k)), m, src, field));
+      }
+    }
+  }
+  if (roots.empty()) return {};
+  // A node is moved when it or an ancestor is a spring's.
+  const Impl& a = asset.impl();
+  std::vector<uint8_t> moved_node(m.nodes.size(), 0);
+  for (int r : roots) moved_node[size_t(r)] = 1;
+  for (int n : a.node_order) {  // parents first
+    const int p = a.parent[size_t(n)];
+    if (p >= 0 && moved_node[size_t(p)]) moved_node[size_t(n)] = 1;
+  }
+  std::vector<uint8_t> out(character.joint_nodes.size(), 0);
+  for (size_t j = 0; j < out.size(); ++j) {
+    const int n = character.joint_nodes[j];
+    out[j] = n >= 0 && moved_node[size_t(n)];
+  }
+  return out;
+}
+
 }  // namespace amt

@@ -46,9 +46,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "data_tools/formats/joint_map.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/motion.h"
@@ -132,6 +134,28 @@ struct GltfCharacter {
 /// Imports the skinned character of an asset. Throws amt::Error when the default scene has no
 /// skinned mesh node, a primitive is not TRIANGLES, or any data read is invalid.
 GltfCharacter gltf_character(const GltfAsset& asset);
+
+// === VRM avatars
+
+/// The VRM version of an asset: "0" for the "VRM" extension (VRM 0.x, UniVRM's), "1" for "VRMC_vrm" (VRM 1.0),
+/// "" for a plain glTF. VRM 0.x avatars face -Z with their left on -X; VRM 1.0 ones face +Z (the VRM 1.0
+/// specification, "Coordinate system").
+std::string gltf_vrm_version(const GltfAsset& asset);
+
+/// A VRM avatar's humanoid bone map as a joint map onto `character`'s skeleton names, so that no --joint-map is
+/// needed: hips, upper / lower leg, foot, toes, neck, head, shoulder, upper / lower arm and hand of each side
+/// (VRM 0.x extensions.VRM.humanoid.humanBones [{bone, node}], VRM 1.0 extensions.VRMC_vrm.humanoid.humanBones
+/// {bone: {node}}). The spine, chest and upper chest are left to map_to_canonical's structure rule, which spreads
+/// spine1..spine3 over the joints between the hips and the neck as for any rig. A bone on a node that is not one
+/// of the skin's joints is left out. Empty for a plain glTF. Throws amt::Error naming the field for a malformed
+/// map (a node index out of range, a bone that is not a string).
+std::optional<JointMapFile> gltf_vrm_joint_map(const GltfAsset& asset, const GltfCharacter& character);
+
+/// Per joint of `character.skeleton`, 1 when a VRM spring bone moves it: VRM 0.x
+/// extensions.VRM.secondaryAnimation.boneGroups[].bones (each a chain's root) and every joint below them, VRM 1.0
+/// extensions.VRMC_springBone.springs[].joints[].node and every joint below them. Empty when the asset has no
+/// spring bones. Throws amt::Error naming the field for a node index out of range.
+std::vector<uint8_t> gltf_vrm_spring_joints(const GltfAsset& asset, const GltfCharacter& character);
 
 // === Animation
 
