@@ -73,6 +73,11 @@ void add_animate_command(CLI::App& app) {
   cmd->add_flag("--refiner", o->refine,
                 "Also run the model's joint refiner after the apparel module (off by default: it gains at most "
                 "0.01 cm on the held-out characters for about a third of the frame's time)");
+  cmd->add_option("--strain-limit", o->strain_limit,
+                  "Largest stretch of an apparel edge over its rest length that the learned apparel is limited to "
+                  "(a few projections per frame, apparel vertices only; 0: off)")
+      ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
+      ->capture_default_str();
   cmd->add_flag("--no-resolve-penetration", *no_resolve, "Do not push apparel out of the body");
   cmd->add_option("--penetration-margin", o->penetration.margin,
                   "Distance outside the body a pushed vertex ends at, metres")

@@ -202,6 +202,11 @@ void add_eval_command(CLI::App& app) {
   eval->add_flag("--rig-handles", o.rig_handles,
                  "On characters whose rig has apparel bones, the methods on the ground-truth mask move the apparel "
                  "module's handles at the rig's own bones instead of handles picked automatically");
+  eval->add_option("--strain-limit", o.strain_limit,
+                   "Largest stretch of an apparel edge over its rest length that the learned apparel's output is "
+                   "limited to (0: off, the apparel module's raw output)")
+      ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
+      ->capture_default_str();
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");
   add_threads_option(*eval);

@@ -187,6 +187,15 @@ void run(const RefitCommandOptions& o) {
   const std::string kind = output_kind(o.out);
   check_replaceable_file(o.out);
   if (!o.picture.empty()) check_replaceable_file(o.picture);
+  const std::vector<RunInput> inputs = {{o.garment, "--garment"},
+                                        {o.source.spec, "--source"},
+                                        {o.source.joints, "--source-joints"},
+                                        {o.source.joint_map, "--source-joint-map"},
+                                        {o.target.spec, "--target"},
+                                        {o.target.joints, "--target-joints"},
+                                        {o.target.joint_map, "--target-joint-map"}};
+  check_output_not_input(o.out, "--out", inputs);
+  check_output_not_input(o.picture, "--picture", inputs);
   const Avatar source = load_avatar(o.source, "--source");
   const Avatar target = load_avatar(o.target, "--target");
   const TriMesh garment = load_garment(o.garment, source, o.garment_share);

@@ -1,5 +1,7 @@
 #include "infer/retarget_cloth.h"
 
+#include "data_tools/formats/atomic_file.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -123,6 +125,12 @@ RetargetClothSummary retarget_cloth(const RetargetClothOptions& o) {
   const auto job_start = Clock::now();
   RetargetClothSummary s;
   output_kind(o.out);  // rejects .gltf / .obj names before any work
+  check_output_not_input(o.out, "--out",
+                         {{o.source, "--source"},
+                          {o.source_character, "--source-character"},
+                          {o.target, "--target"},
+                          {o.target_motion.spec, "--target-motion"},
+                          {o.target_motion.joint_map, "--motion-joint-map"}});
 
   DatasetCharacter source_character;
   const SourceFrames source(o, source_character);

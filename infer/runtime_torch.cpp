@@ -1,5 +1,7 @@
 #include "infer/runtime_torch.h"
 
+#include "data_tools/formats/atomic_file.h"
+
 #include <ATen/ATen.h>
 #include <c10/core/InferenceMode.h>
 
@@ -48,7 +50,7 @@ at::Tensor transforms_tensor(const Transforms& transforms) {
 }
 
 RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
-                               PenetrationOptions penetration, bool refine)
+                               PenetrationOptions penetration, bool refine, float strain_limit)
     : bundle_(bundle),
       bound_(std::move(bound)),
       mask_(mask_vector(bound_.apparel_mask)),
@@ -57,6 +59,7 @@ RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, 
       refine_(refine) {
   stepper_ = std::make_unique<PipelineStepper>(bundle_, bound_, rest_apparel_history(bound_),
                                                refine ? PipelineStages::kFull : PipelineStages::kBodyApparel);
+  stepper_->set_strain_limit(strain_limit);
   c10::InferenceMode inference;
   const at::Tensor extent = std::get<0>(bound_.V.max(0)) - std::get<0>(bound_.V.min(0));
   output_bound_ = 10.0f * std::max(extent.norm().item<float>(), 0.1f);
@@ -267,6 +270,39 @@ OutputInfo output_info(const RuntimeCharacter& character, const SourceMotion& so
   return info;
 }
 
+// Refuses, before any work, a run whose outputs (--out, the bind cache, --picture) would replace one of its inputs
+// (the character, the motion, their joint maps and joints file, the apparel mask file, the model's checkpoints) or
+// one another.
+void check_outputs_are_not_inputs(const AnimateOptions& o) {
+  std::vector<RunInput> inputs = {{o.character.spec, "--character"},
+                                  {o.character.joints, "--character-joints"},
+                                  {o.character.joint_map, "--character-joint-map"},
+                                  {o.motion.spec, "--motion"},
+                                  {o.motion.joint_map, "--motion-joint-map"}};
+  if (o.apparel_mask != "auto" && o.apparel_mask != "model" && o.apparel_mask != "rig")
+    inputs.push_back({o.apparel_mask, "--apparel-mask"});
+  if (o.apparel != "physics" && !o.model_dir.empty()) {
+    for (const char* name : {"segmenter.ckpt", "skinning.ckpt", "apparel.ckpt", "refiner.ckpt"})
+      inputs.push_back({(std::filesystem::path(o.model_dir) / name).string(), "--model"});
+  }
+  const std::string bind = o.bind_path == "none" ? ""
+                           : !o.bind_path.empty() ? o.bind_path
+                           : o.out.empty()        ? ""
+                                                  : default_bind_path(o.out);
+  std::vector<std::pair<std::string, std::string>> outputs = {{o.out, "--out"}, {bind, "--bind"}, {o.picture, "--picture"}};
+  for (size_t k = 0; k < outputs.size(); ++k) {
+    check_output_not_input(outputs[k].first, outputs[k].second, inputs);
+    for (size_t m = k + 1; m < outputs.size(); ++m) {
+      if (outputs[k].first.empty() || outputs[m].first.empty()) continue;
+      std::error_code error;
+      const auto a = std::filesystem::weakly_canonical(outputs[k].first, error);
+      const auto b = std::filesystem::weakly_canonical(outputs[m].first, error);
+      AMT_CHECK(a != b, outputs[m].first, ": ", outputs[m].second, ": expected a file of its own, found the run's ",
+                outputs[k].second, " output: choose another name");
+    }
+  }
+}
+
 // `amt animate --apparel physics`: the PMX model's own physics under the motion, skinned by its own rig, streamed
 // to the output. No network and no bind: the model folder is not read.
 AnimateSummary animate_with_physics(const AnimateOptions& o) {
@@ -278,6 +314,7 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
             "prediction beside skinning); use --out FILE.glb");
   AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
   output_kind(o.out);
+  check_outputs_are_not_inputs(o);
   const std::string& path = o.character.spec;
   std::string e = std::filesystem::path(path).extension().string();
   std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
@@ -358,6 +395,7 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.apparel = "learned (the apparel module of " + o.model_dir + (o.refine ? ", then its refiner" : "") + ")";
   AMT_CHECK(!o.out.empty() || !o.html_dir.empty(), "--out: expected an output (or --html DIR), found none");
   if (!o.out.empty()) output_kind(o.out);  // rejects .gltf / .obj names before any work
+  check_outputs_are_not_inputs(o);
   // The viewer folder: refused before any work when it holds files amt did not write.
   const std::filesystem::path html(o.html_dir);
   if (!o.html_dir.empty()) {
@@ -447,7 +485,8 @@ AnimateSummary animate(const AnimateOptions& o) {
     std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
               << " in " << bind.seconds << " s\n";
   }
-  RuntimeSession session(bundle, bind.bound, character.mesh.F, o.resolve_penetration, o.penetration, o.refine);
+  RuntimeSession session(bundle, bind.bound, character.mesh.F, o.resolve_penetration, o.penetration, o.refine,
+                         o.strain_limit);
   s.vertices = character.mesh.num_vertices();
   s.apparel_vertices = int(session.bound().num_apparel());
   s.frames = player.num_frames();

@@ -37,8 +37,9 @@ class RuntimeSession {
   /// Starts from rest_apparel_history. `resolve` switches penetration resolution on. Prepares the
   /// resolver on the rest pose (PenetrationResolver::prepare). `refine` runs the joint refiner after the
   /// apparel module (PipelineStages::kFull); without it V̂ is tile(Â, B̂) (kBodyApparel).
+  /// `strain_limit` bounds the learned apparel's edge stretch (PipelineStepper::set_strain_limit; 0: off).
   RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, const MatrixX3i& F, bool resolve,
-                 PenetrationOptions penetration = {}, bool refine = true);
+                 PenetrationOptions penetration = {}, bool refine = true, float strain_limit = kDefaultStrainLimit);
 
   /// Runs frame T^(t) (J transforms on the bundle's skeleton): V̂ into `V` (#V by 3), then the
   /// penetration resolution when on. Returns the stage times (output excluded). Throws amt::Error
@@ -120,6 +121,8 @@ struct AnimateOptions {
   /// Run the joint refiner after the apparel module (`--refiner`). Off by default: measured on the held-out
   /// characters it changes PMD_a by at most 0.01 cm and costs about a third of a 28k-vertex frame.
   bool refine = false;
+  /// The learned apparel's stretch limit (`--strain-limit`; PipelineStepper::set_strain_limit, 0: off).
+  float strain_limit = kDefaultStrainLimit;
   PenetrationOptions penetration;
   /// Print the mapping and a progress line (done/total, frames/s, ETA) on stderr.
   bool verbose = true;

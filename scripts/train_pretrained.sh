@@ -120,11 +120,25 @@ if [[ $modules == *" apparel "* ]]; then
   # <out>/apparel_vertices/ (the per-vertex module). A third stage fine-tunes that network on handles 3 cm
   # apart (--handle-spacing 0.03: the module moves the handles and every vertex follows them, so seams and
   # strip bundles cannot come apart) on HANDLES_DATA (comma-separated folders; default: the data above), into
-  # <out>/apparel_handles_3cm/, and a fourth that one on handles 2 cm apart, at half the learning rate.
+  # <out>/apparel_handles_3cm/, and a fourth that one on handles 2 cm apart, at half the learning rate, into
+  # <out>/apparel_handles_2cm/. The last two stages fine-tune it on HANDLES_DATA plus its characters remade as
+  # artists build models (`amt dataset artist-style`: UV seams with coincident copies, hair strips, double-sided and
+  # layered panels, about 20k vertices; 16 clips each, written to ARTIST_DATA, default <out>/artist_style_data,
+  # about 7 GB for data/default), 4000 steps into <out>/apparel_artist_style/, then 6000 more (seed + 1) into <out>.
   anchor_skinning=${APPAREL_SKINNING:-$out/skinning.ckpt}
   IFS=, read -r -a handles_data <<< "${HANDLES_DATA:-$1}"
   skinning_args=()
   [[ $anchor_skinning == none ]] || skinning_args=(--skinning "$anchor_skinning")
+  artist_data=${ARTIST_DATA:-$out/artist_style_data}
+  artist_style_data() {  # the first HANDLES_DATA folder's shards remade artist-style (kept when already there)
+    mkdir -p "$artist_data"
+    local shard name
+    for shard in "${handles_data[0]}"/*.h5; do
+      name=$(basename "$shard")
+      [[ -f $artist_data/$name ]] && continue
+      "$amt" dataset artist-style "$shard" --out "$artist_data/$name" --max-clips 16 --threads 1 --quiet || return 1
+    done
+  }
   apparel_then_refiner() {
     # The predictor trained here must be written before the apparel module reads it.
     if [[ -n ${skinning_pid:-} && $anchor_skinning == "$out/skinning.ckpt" ]]; then
@@ -147,10 +161,22 @@ if [[ $modules == *" apparel "* ]]; then
         --checkpoint-every 500 --validate-every 1000 --init "$out/apparel_vertices/apparel.ckpt" \
         --handle-spacing 0.03 --lr 2e-4 --steps "${APPAREL_HANDLE_STEPS:-10000}" --window 63 --free-run 40 \
         --apparel-loss distance --unroll 5:0.3,20:1 &&
-      run apparel apparel --data "${handles_data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 \
-        --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out" --checkpoint-every 500 \
-        --validate-every 1000 --init "$out/apparel_handles_3cm/apparel.ckpt" --handle-spacing 0.02 --lr 1e-4 \
-        --steps "${APPAREL_FINE_HANDLE_STEPS:-4000}" --window 63 --free-run 40 --apparel-loss distance \
+      run apparel_handles_2cm apparel --data "${handles_data[@]}" --seed "$seed" --lr-schedule cosine --threads 1 \
+        --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out/apparel_handles_2cm" \
+        --checkpoint-every 500 --validate-every 1000 --init "$out/apparel_handles_3cm/apparel.ckpt" \
+        --handle-spacing 0.02 --lr 1e-4 --steps "${APPAREL_FINE_HANDLE_STEPS:-4000}" --window 63 --free-run 40 \
+        --apparel-loss distance --unroll 5:0.3,20:1 &&
+      artist_style_data &&
+      run apparel_artist_style apparel --data "${handles_data[@]}" "$artist_data" --seed "$seed" \
+        --lr-schedule cosine --threads 1 --validation-samples 16 --batch 1 "${skinning_args[@]}" \
+        --out "$out/apparel_artist_style" --checkpoint-every 500 --validate-every 1000 \
+        --init "$out/apparel_handles_2cm/apparel.ckpt" --handle-spacing 0.02 --lr 1e-4 \
+        --steps "${APPAREL_ARTIST_STEPS:-4000}" --window 63 --free-run 40 --apparel-loss distance \
+        --unroll 5:0.3,20:1 &&
+      run apparel apparel --data "${handles_data[@]}" "$artist_data" --seed "$((seed + 1))" --lr-schedule cosine \
+        --threads 1 --validation-samples 16 --batch 1 "${skinning_args[@]}" --out "$out" --checkpoint-every 500 \
+        --validate-every 1000 --init "$out/apparel_artist_style/apparel.ckpt" --handle-spacing 0.02 --lr 1e-4 \
+        --steps "${APPAREL_ARTIST_MORE_STEPS:-6000}" --window 63 --free-run 40 --apparel-loss distance \
         --unroll 5:0.3,20:1 &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" --edge-weight 1 \

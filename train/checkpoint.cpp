@@ -207,9 +207,17 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
   archive.write("model", model_archive);
   archive.write("payload_crc32", c10::IValue(int64_t(payload_crc32(info, written))));
   if (optimizer) {
-    torch::serialize::OutputArchive optimizer_archive(archive.compilation_unit());
+    // The optimizer's state as the bytes of its own archive under a CRC-32 (optimizer_crc32), so that a damaged
+    // moment estimate is found on --resume instead of resuming to a diverging loss.
+    torch::serialize::OutputArchive optimizer_archive;
     optimizer->save(optimizer_archive);
-    archive.write("optimizer", optimizer_archive);
+    std::ostringstream bytes;
+    optimizer_archive.save_to(bytes);
+    const std::string text = bytes.str();
+    at::Tensor blob = at::empty({int64_t(text.size())}, at::kByte);
+    std::memcpy(blob.data_ptr<uint8_t>(), text.data(), text.size());
+    archive.write("optimizer_bytes", blob);
+    archive.write("optimizer_crc32", c10::IValue(int64_t(crc32_update(0, text.data(), text.size()))));
   }
   if (training_parameters) {
     torch::serialize::OutputArchive training_archive(archive.compilation_unit());
@@ -291,8 +299,29 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
 
   if (optimizer) {
     torch::serialize::InputArchive optimizer_archive;
-    AMT_CHECK(archive.try_read("optimizer", optimizer_archive), path,
-              ": optimizer: missing (a model-only checkpoint cannot resume training)");
+    at::Tensor blob;
+    if (archive.try_read("optimizer_bytes", blob)) {
+      c10::IValue stored;
+      AMT_CHECK(archive.try_read("optimizer_crc32", stored) && stored.isInt(), path,
+                ": optimizer_crc32: expected an integer, found none");
+      AMT_CHECK(blob.dim() == 1 && blob.scalar_type() == at::kByte, path,
+                ": optimizer_bytes: expected a 1-D byte tensor, found ", blob.sizes(), " ", blob.scalar_type());
+      blob = blob.contiguous();
+      const std::string text(reinterpret_cast<const char*>(blob.data_ptr<uint8_t>()), size_t(blob.numel()));
+      const uint32_t computed = crc32_update(0, text.data(), text.size());
+      AMT_CHECK(int64_t(computed) == stored.toInt(), path, ": optimizer_crc32: expected ", stored.toInt(),
+                ", found ", computed, " over the optimizer's state: the file is damaged");
+      std::istringstream in(text);
+      try {
+        optimizer_archive.load_from(in);
+      } catch (const std::exception& e) {
+        fail(path, ": optimizer_bytes: expected the optimizer's archive, found ", first_line(e));
+      }
+    } else {
+      // Checkpoints written before optimizer_crc32 keep the optimizer as a nested archive, unverified.
+      AMT_CHECK(archive.try_read("optimizer", optimizer_archive), path,
+                ": optimizer: missing (a model-only checkpoint cannot resume training)");
+    }
     try {
       optimizer->load(optimizer_archive);
     } catch (const std::exception& e) {

@@ -910,6 +910,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages, m.source, inertia);
+        stepper.set_strain_limit(options.strain_limit);
         for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
           stepper.reset(gt_apparel.narrow(0, s, kHistory), motion.narrow(0, s, kHistory));
           for (int64_t t = s + kHistory; t < s + options.window; ++t) {
@@ -924,6 +925,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
         PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages, m.source, inertia);
+        stepper.set_strain_limit(options.strain_limit);
         const at::Tensor lead_in = motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames);
         for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
         Curve& curve = acc.curves[{c.subset, m.key}];
@@ -1244,6 +1246,7 @@ ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, 
   // The full model's rollout, as evaluate_model runs it.
   const BoundCharacter b = bind_character(bundle, c->V, c->F, c->joints, bind_options_for("predicted", *c));
   PipelineStepper stepper(bundle, b, rest_apparel_history(b), PipelineStages::kFull, ApparelSource::kNetwork, 0.0);
+  stepper.set_strain_limit(result.options.strain_limit);
   const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);
   for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
   for (int64_t t = 0; t < T; ++t) v.prediction.push_back(to_matrix(stepper.step(motion[t])));

@@ -77,6 +77,9 @@ struct EvaluateOptions {
   /// mask, as `amt animate` uses it by default) move the apparel module's handles at the rig's bones (bone_rig)
   /// instead of handles picked automatically.
   bool rig_handles = false;
+  /// The learned apparel's stretch limit in every method that runs the apparel module
+  /// (PipelineStepper::set_strain_limit; 0: off, the module's raw output).
+  float strain_limit = kDefaultStrainLimit;
 };
 
 // === Results

@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
+#include <cstdlib>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -520,7 +522,39 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
     rig_ = character_.rig();
     handle_graph_ = handle_graph(character_.apparel_graph(), rig_);
   }
+  set_strain_limit(kDefaultStrainLimit);
   reset(history);
+}
+
+void PipelineStepper::set_strain_limit(float max_stretch, int iterations) {
+  strain_ = StrainLimiter();
+  const int64_t N_a = character_.num_apparel(), N_b = character_.num_body();
+  if (max_stretch == 0.0f || source_ != ApparelSource::kNetwork || !bundle_.local_apparel() ||
+      stages_ == PipelineStages::kBodyOnly || N_a == 0 || !character_.graph_edges.defined())
+    return;
+  // Each vertex's place in the limiter's numbering: apparel first, then body.
+  std::vector<int32_t> place(size_t(character_.num_vertices()), -1);
+  const at::Tensor apparel = character_.apparel_ids.to(at::kLong).contiguous();
+  const at::Tensor body = character_.body_ids.to(at::kLong).contiguous();
+  for (int64_t k = 0; k < N_a; ++k) place[size_t(apparel.data_ptr<int64_t>()[k])] = int32_t(k);
+  for (int64_t k = 0; k < N_b; ++k) place[size_t(body.data_ptr<int64_t>()[k])] = int32_t(N_a + k);
+  const at::Tensor E = character_.graph_edges.to(at::kLong).contiguous();
+  const at::Tensor V = character_.V.to(at::kFloat).contiguous();
+  const int64_t* e = E.data_ptr<int64_t>();
+  const float* v = V.data_ptr<float>();
+  std::vector<std::array<int32_t, 2>> kept;
+  std::vector<float> rest;
+  for (int64_t k = 0; k < E.size(0); ++k) {
+    const int64_t a = e[2 * k], b = e[2 * k + 1];
+    const int32_t pa = place[size_t(a)], pb = place[size_t(b)];
+    if (pa < 0 || pb < 0 || (pa >= N_a && pb >= N_a)) continue;
+    kept.push_back({pa, pb});
+    const float dx = v[3 * a] - v[3 * b], dy = v[3 * a + 1] - v[3 * b + 1], dz = v[3 * a + 2] - v[3 * b + 2];
+    rest.push_back(std::sqrt(dx * dx + dy * dy + dz * dz));
+  }
+  MatrixX2i edges(Eigen::Index(kept.size()), 2);
+  for (size_t k = 0; k < kept.size(); ++k) edges.row(Eigen::Index(k)) << kept[k][0], kept[k][1];
+  strain_ = StrainLimiter(edges, rest, int(N_a), int(N_b), max_stretch, iterations, TopologyOptions().weld_tolerance);
 }
 
 void PipelineStepper::reset(const at::Tensor& history, const at::Tensor& history_transforms) {
@@ -605,6 +639,11 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
       }
       history_transforms_ = window_T.squeeze(0).narrow(0, 1, 3);
       history_anchors_ = window_S.squeeze(0).narrow(0, 1, 3);
+    }
+    if (!strain_.empty()) {
+      out.A_hat = out.A_hat.to(at::kFloat).contiguous().clone();
+      const at::Tensor fixed = out.B_hat.to(at::kFloat).contiguous();
+      strain_.apply(out.A_hat.data_ptr<float>(), fixed.data_ptr<float>());
     }
     history_ = at::cat({history_.narrow(0, 1, 2), out.A_hat.unsqueeze(0)}, 0);
   } else {

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/strain_limit.h"
 #include "data_tools/geometry/types.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_dynamics.h"
@@ -252,6 +253,12 @@ enum class PipelineStages {
 /// "body_only", "body_apparel", "full".
 const char* pipeline_stages_name(PipelineStages stages);
 
+/// The learned apparel's default stretch limit (PipelineStepper::set_strain_limit): an apparel edge at most this
+/// many times its rest length, by a few projections per frame. Chosen on the held-out characters (README, "Artists'
+/// meshes"); `amt animate --strain-limit`, `amt eval --strain-limit` change it (0: off).
+inline constexpr float kDefaultStrainLimit = 1.2f;
+inline constexpr int kStrainLimitIterations = 4;
+
 /// What moves the apparel in kBodyApparel and kFull: the apparel module, or one of the zero-network
 /// rules on the same detail vectors (models/apparel_dynamics.h detail_rule_step): hold_offset
 /// (d_t = d_{t-1}) or inertial (d_t = d_{t-1} + inertia (d_{t-1} - d_{t-2})).
@@ -307,6 +314,14 @@ class PipelineStepper {
   const at::Tensor& history() const { return history_; }
   /// Steps taken since construction or the last reset.
   int64_t frames() const { return frames_; }
+
+  /// Limits the stretch of the learned apparel's edges (StrainLimiter, data_tools/geometry/strain_limit.h) to
+  /// `max_stretch` times their rest length over the linked topology (mesh edges with an apparel end, welded seams,
+  /// proximity links), moving apparel vertices only, after every step of the local apparel module (not the rules',
+  /// not the global form's, which the paper's comparisons run as published); the limited
+  /// Â is the output and the history. 0 turns it off. The stepper starts with kDefaultStrainLimit.
+  void set_strain_limit(float max_stretch, int iterations = kStrainLimitIterations);
+  float strain_limit() const { return strain_.empty() ? 0.0f : strain_.max_stretch(); }
   PipelineStages stages() const { return stages_; }
 
  private:
@@ -328,6 +343,8 @@ class PipelineStepper {
   ApparelRig rig_;
   ApparelGraph handle_graph_;
   at::Tensor handle_history_, handle_history_anchors_;
+  // The learned apparel's stretch limit over the apparel (free) and body (fixed) vertices; empty: off.
+  StrainLimiter strain_;
 };
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).

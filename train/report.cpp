@@ -351,8 +351,14 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
   if (!result.model_dir.empty()) md << "- Model: `" << result.model_dir << "`\n";
   if (!result.predictions.empty()) md << "- Predictions: `" << result.predictions << "`\n";
   for (const auto& [subset, n] : result.clips) md << "- " << subset << ": " << n << " clip(s)\n";
+  md << "- Apparel stretch limit: "
+     << (result.options.strain_limit > 0 ? "every apparel edge at most " + fixed(result.options.strain_limit, 2) +
+                                               " times its rest length in the methods that run the apparel module "
+                                               "(`--strain-limit`)"
+                                         : std::string("off (`--strain-limit 0`): the apparel module's raw output"))
+     << "\n";
   md << "- Wall time: " << fixed(result.seconds, 1) << " s\n\n";
-  md << "Metrics (DESIGN.md section 5): PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "
+  md << "Metrics: PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "
         "averaged over vertices, then frames, then clips; ELS = mean of 1 - | |e_pred| / |e_gt| - 1 | over edges "
         "(1 is perfect); penetration = share of ground-truth apparel vertices inside the predicted body surface "
         "(winding number) and their mean depth. Falling apart (below): tearing, seam gap and ELS over apparel "
@@ -659,6 +665,7 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
 
 void check_report_folder(const std::string& dir) {
   AMT_CHECK(!dir.empty(), "eval: --out: expected an output folder, found nothing");
+  check_writable_location(dir, "--out");
   std::error_code error;
   const fs::file_status status = fs::symlink_status(dir, error);
   if (!fs::exists(status)) return;

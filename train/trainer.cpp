@@ -881,7 +881,18 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   for (const auto& term : task.terms) header += "," + term;
   header += ",samples_per_s,seconds,val_loss";
   std::ofstream log;
+  // A fresh run that fails before its first row removes the log it started (a header alone says nothing).
+  struct FreshLog {
+    std::string path;
+    bool armed = false;
+    ~FreshLog() {
+      std::error_code ignored;
+      if (armed) std::filesystem::remove(path, ignored);
+    }
+  } fresh_log;
   if (writes) {
+    std::error_code error;
+    fresh_log = {result.log, first_step == 0 && !std::filesystem::exists(result.log, error)};
     prepare_log(result.log, header, first_step);
     log.open(result.log, std::ios::app);
     AMT_CHECK(log.good(), result.log, ": cannot append to the training log");
@@ -962,6 +973,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
       log << "," << o.batch / seconds << "," << elapsed << ",";
       if (validate) log << last_validation;
       log << "\n";
+      fresh_log.armed = false;
       log.flush();
       AMT_CHECK(log.good(), result.log, ": write: expected to append step ", step + 1,
                 ", found a write error (disk full?)");
@@ -1010,6 +1022,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     result.gradient_bytes = group->gradient_bytes();
   }
   if (!writes) result.checkpoint = result.log = "";
+  fresh_log.armed = false;
   return result;
 }
 

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <unistd.h>
+
 #include "data_tools/geometry/error.h"
 #include "data_tools/formats/temporary_registry.h"
 
@@ -50,6 +52,36 @@ void check_replaceable_file(const std::string& path) {
   AMT_CHECK(type == std::filesystem::file_type::not_found || type == std::filesystem::file_type::regular, path,
             ": output: expected a regular file or no file to replace, found ", describe_file_type(type),
             " (amt replaces only regular files; remove it or choose another name)");
+}
+
+void check_writable_location(const std::string& path, const std::string& what) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  fs::path at = fs::absolute(fs::path(path), error).lexically_normal();
+  if (at.has_filename() && !fs::is_directory(at, error)) at = at.parent_path();
+  while (!at.empty() && !fs::exists(fs::symlink_status(at, error)) && at != at.root_path()) at = at.parent_path();
+  AMT_CHECK(fs::is_directory(at, error), path, ": ", what, ": cannot write into ", at.string(), " (",
+            describe_file_type(fs::status(at, error).type()), ", not a folder)");
+  AMT_CHECK(::access(at.c_str(), W_OK | X_OK) == 0, path, ": ", what, ": cannot write into ", at.string(), " (",
+            std::strerror(errno), ")");
+}
+
+void check_output_not_input(const std::string& output, const std::string& option, const std::vector<RunInput>& inputs) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  if (output.empty() || !fs::exists(output, error)) return;  // a new file cannot be an input
+  for (const RunInput& input : inputs) {
+    if (input.path.empty()) continue;
+    std::vector<std::string> candidates = {input.path};
+    const size_t colon = input.path.rfind(':');
+    if (colon != std::string::npos && colon > 0) candidates.push_back(input.path.substr(0, colon));
+    for (const std::string& candidate : candidates) {
+      if (!fs::exists(candidate, error)) continue;
+      AMT_CHECK(!fs::equivalent(output, candidate, error), output, ": ", option,
+                ": expected a new file, found the run's own input ", candidate, " (", input.option,
+                "); amt never replaces an input: choose another name");
+    }
+  }
 }
 
 void prepare_temporary_file(const std::string& temporary) {

@@ -3,6 +3,7 @@
 // goes to "<path>.tmp" first and is renamed onto the path only when complete.
 #include <filesystem>
 #include <string>
+#include <vector>
 #include <string_view>
 
 namespace amt {
@@ -21,6 +22,21 @@ std::string describe_file_type(std::filesystem::file_type type);
 /// a folder, a symbolic link, a FIFO, a socket or a device). Throws amt::Error naming the path and
 /// what is there otherwise.
 void check_replaceable_file(const std::string& path);
+
+/// Checks, before any work, that amt can write `path` (a file or folder to create or replace): the nearest folder
+/// that exists on the way to it (the path itself when it is a folder) is a folder amt may write into. Throws
+/// amt::Error "<path>: <what>: cannot write into <folder> (<reason>)" otherwise: a read-only folder or file
+/// system, or a regular file where a folder would have to be.
+void check_writable_location(const std::string& path, const std::string& what);
+
+/// An output of a run and the inputs it must not replace: throws amt::Error "<output>: <option>: expected a new
+/// file, found the run's own input <input> (<its option>); amt never replaces an input: choose another name" when
+/// `output` is the same file as one of `inputs` (same file on disk, whatever the spelling: links, "./", hard
+/// links). An input "file.h5:name" (a dataset character or clip) is its file. Inputs that do not exist are skipped.
+struct RunInput {
+  std::string path, option;
+};
+void check_output_not_input(const std::string& output, const std::string& option, const std::vector<RunInput>& inputs);
 
 /// Makes `temporary` ready to be created: removes a stale regular file left by a killed run; throws
 /// amt::Error naming it when it is anything else (a folder, a link that would be written through, a

@@ -155,5 +155,28 @@ TEST(AnimateCommand, RefusesOutputsThatWouldReplaceWhatAmtDidNotWriteAndLeavesTh
        {animate(""), {"--out: expected an output (or --html DIR), found none"}}});
 }
 
+TEST(AnimateCommand, AnOutputThatIsOneOfTheRunsInputsIsRefusedAndTheInputKept) {
+  const fs::path dir = test::temp_dir("animate_onto_input");
+  test::write_example_dataset(dir);
+  std::ofstream(dir / "map.json") << "{}\n";
+  std::ofstream(dir / "mask.txt") << "0\n";
+  fs::create_symlink("ex.h5", dir / "link.h5");
+  const std::string onto = "amt never replaces an input: choose another name";
+  test::expect_errors_writing_nothing(
+      dir,
+      {// --out onto the character's shard, also spelled through a link and "./"; the bind cache onto it; the
+       // picture onto the joint map; the bind cache onto the mask file.
+       {animate("ex.h5"), {"ex.h5: --out: expected a new file, found the run's own input ex.h5 (--character); ", onto}},
+       {animate("link.h5"), {"link.h5: --out: expected a new file, found the run's own input ex.h5 (--character)"}},
+       {animate("./ex.h5"), {"./ex.h5: --out: expected a new file, found the run's own input ex.h5"}},
+       {animate("x.glb", {"--bind", "ex.h5"}), {"ex.h5: --bind: expected a new file, found the run's own input ex.h5"}},
+       {animate("x.glb", {"--motion-joint-map", "map.json", "--picture", "map.json"}),
+        {"map.json: --picture: expected a new file, found the run's own input map.json (--motion-joint-map)"}},
+       {animate("x.glb", {"--apparel-mask", "mask.txt", "--bind", "mask.txt"}),
+        {"mask.txt: --bind: expected a new file, found the run's own input mask.txt (--apparel-mask)"}},
+       // Two outputs onto one file.
+       {animate("x.glb", {"--picture", "x.glb"}), {"x.glb: --picture: expected a file of its own, found the run's --out output"}}});
+}
+
 }  // namespace
 }  // namespace amt

@@ -79,7 +79,11 @@ TEST(RefitGarmentCommand, BadInputsAreOneLineErrorsNamingTheFileAndWriteNothing)
             {quiet("generated:skirt", "out.glb"),
              {"--garment generated:skirt: kind 'skirt', expected one of ", "flared_skirt"}},
             {quiet("sheet.obj", "out.ply"), {"--out out.ply: expected an .obj", "found the extension '.ply'"}},
-            {quiet("sheet.obj", "folder.obj"), {"folder.obj: ", "found a folder"}}});
+            {quiet("sheet.obj", "folder.obj"), {"folder.obj: ", "found a folder"}},
+            // The output onto the run's own garment: refused before any work, the garment kept.
+            {quiet("sheet.obj", "sheet.obj"),
+             {"sheet.obj: --out: expected a new file, found the run's own input sheet.obj (--garment); amt never "
+              "replaces an input"}}});
 }
 
 }  // namespace

@@ -119,6 +119,36 @@ TEST(Checkpoint, AFlippedByteInAStoredParameterIsAChecksumError) {
   EXPECT_NE(error.find("the file is damaged"), std::string::npos) << error;
 }
 
+TEST(Checkpoint, AFlippedByteInTheOptimizersStateIsAChecksumErrorOnResume) {
+  test::use_one_thread();
+  torch::manual_seed(1);
+  ApparelDisplacementNet net(tiny_apparel(5));
+  torch::optim::AdamW optimizer(net->parameters(), torch::optim::AdamWOptions(1e-3));
+  train_two_steps(net, optimizer);
+  const std::string path = temp_path("flipped_optimizer.ckpt");
+  save_checkpoint(path, apparel_info(net), *net, &optimizer);
+  ApparelDisplacementNet loaded(tiny_apparel(5));
+  torch::optim::AdamW loaded_optimizer(loaded->parameters(), torch::optim::AdamWOptions(1e-3));
+  EXPECT_NO_THROW(load_checkpoint(path, ModuleKind::kApparel, *loaded, &loaded_optimizer));  // intact: loads
+  // One flipped bit in the first parameter's second moment (found by its bytes inside the optimizer's state).
+  const at::Tensor p0 = net->parameters()[0];
+  const auto& state = static_cast<const torch::optim::AdamWParamState&>(
+      *optimizer.state().at(c10::guts::to_string(p0.unsafeGetTensorImpl())));
+  const at::Tensor moment = state.exp_avg_sq().contiguous();
+  ASSERT_GE(moment.nbytes(), 16u);
+  std::string bytes = test::read_file_bytes(path);
+  const size_t at = bytes.find(std::string(static_cast<const char*>(moment.data_ptr()), 16));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 6] ^= 0x40;
+  std::ofstream(path, std::ios::binary) << bytes;
+  // The model alone still loads (its own checksum holds); resuming does not.
+  EXPECT_NO_THROW(load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr));
+  const std::string error =
+      error_of([&] { load_checkpoint(path, ModuleKind::kApparel, *loaded, &loaded_optimizer); });
+  EXPECT_EQ(error.rfind(path + ": optimizer_crc32: expected ", 0), 0u) << error;
+  EXPECT_NE(error.find("over the optimizer's state: the file is damaged"), std::string::npos) << error;
+}
+
 TEST(Checkpoint, RoundTripRestoresParametersAndOptimizerState) {
   test::use_one_thread();
   torch::manual_seed(1);

@@ -310,6 +310,7 @@ TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
   // The stepper, reset on ground-truth states with their frames' motion, equals the module's rollout
   // over the same frames (an off-by-one in the stepper's motion or anchor history would not).
   PipelineStepper stepper(bundle, b, history, PipelineStages::kBodyApparel);
+  stepper.set_strain_limit(0.0f);  // the module's raw output
   stepper.reset(history, motion.narrow(0, 0, 3));
   std::vector<at::Tensor> A_hat;
   for (int t = 3; t < T; ++t) A_hat.push_back(stepper.step_detailed(motion[t]).A_hat.clone());
@@ -330,6 +331,60 @@ TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
   aware.reset(history, motion.narrow(0, 0, 3));
   EXPECT_GT((unaware.step_detailed(motion[3]).A_hat - aware.step_detailed(motion[3]).A_hat).abs().max().item<float>(),
             1e-4f);
+}
+
+// The largest length over rest length of the linked edges with an apparel end (rest at least 1 mm) in V (N, 3).
+float largest_stretch(const BoundCharacter& b, const at::Tensor& V) {
+  const at::Tensor E = b.graph_edges.to(at::kLong);
+  const at::Tensor apparel = b.apparel_mask.to(at::kBool);
+  const at::Tensor keep = apparel.index_select(0, E.select(1, 0)).logical_or(apparel.index_select(0, E.select(1, 1)));
+  const at::Tensor kept = E.index({keep});
+  const at::Tensor rest = (b.V.index_select(0, kept.select(1, 0)) - b.V.index_select(0, kept.select(1, 1))).norm(2, 1);
+  const at::Tensor now = (V.index_select(0, kept.select(1, 0)) - V.index_select(0, kept.select(1, 1))).norm(2, 1);
+  const at::Tensor long_enough = rest.gt(1e-3);
+  return (now.index({long_enough}) / rest.index({long_enough})).max().item<float>();
+}
+
+TEST(PipelineStepper, TheStrainLimitBoundsTheModulesStretchAndLeavesTheRulesAlone) {
+  test::use_one_thread();
+  const std::string dir = test::write_fresh_model(test::test_directory("strain_bundle"), 5, canonical_joint_names(),
+                                                  /*local_apparel=*/true);
+  const std::string data = test::test_directory("strain_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1, {}});
+  const ModelBundle bundle = load_model_bundle(dir);
+  const MicroCharacter c = read_micro(data);
+  BindOptions options;
+  options.apparel_mask = c.mask;
+  const BoundCharacter b = bind_character(bundle, c.V, c.F, c.joints, options);
+  ASSERT_GT(b.num_apparel(), 0);
+  at::Tensor motion, V_gt;
+  std::tie(motion, V_gt) = read_walk(data, 4);
+  // A history of the apparel stretched to twice its size about its centre: the module carries the stretch on.
+  const at::Tensor A_rest = b.V.index_select(0, b.apparel_ids);
+  const at::Tensor centre = A_rest.mean(0, true);
+  const at::Tensor stretched = (centre + 2.0f * (A_rest - centre)).unsqueeze(0).repeat({3, 1, 1});
+
+  PipelineStepper raw(bundle, b, stretched, PipelineStages::kBodyApparel);
+  raw.set_strain_limit(0.0f);
+  PipelineStepper limited(bundle, b, stretched, PipelineStages::kBodyApparel);
+  EXPECT_EQ(raw.strain_limit(), 0.0f);
+  EXPECT_EQ(limited.strain_limit(), kDefaultStrainLimit);
+  const StepOutput r = raw.step_detailed(motion[3]);
+  const StepOutput l = limited.step_detailed(motion[3]);
+  const float before = largest_stretch(b, r.V_hat), after = largest_stretch(b, l.V_hat);
+  EXPECT_GT(before, 1.5f);
+  EXPECT_LT(after, before - 0.2f) << before << " -> " << after;
+  // Only apparel vertices move; the body is the same.
+  EXPECT_TRUE(at::equal(r.B_hat, l.B_hat));
+  // The limited output is the history: the next step starts from it (differs from the raw stepper's).
+  EXPECT_TRUE(at::equal(limited.history()[2], l.A_hat));
+
+  // The rules are not limited: hold_offset is its anchor-carried detail whatever the setting.
+  PipelineStepper hold(bundle, b, stretched, PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);
+  PipelineStepper hold_raw(bundle, b, stretched, PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);
+  hold_raw.set_strain_limit(0.0f);
+  EXPECT_EQ(hold.strain_limit(), 0.0f);
+  EXPECT_TRUE(at::equal(hold.step_detailed(motion[3]).A_hat, hold_raw.step_detailed(motion[3]).A_hat));
 }
 
 TEST(PipelineStart, RestHistoryAndLeadIn) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -25,6 +26,8 @@
 #include "data_tools/geometry/threads.h"
 #include "micro_dataset.h"
 #include "tests/test_support.h"
+#include "models/apparel_segmenter.h"
+#include "train/checkpoint.h"
 #include "train/module_options.h"
 #include "train/samples.h"
 
@@ -239,6 +242,38 @@ TEST(Trainer, ShortRunsLowerTheLossOfEveryModule) {
   EXPECT_LT(mean(r.losses, 30, 10), mean(r.losses, 0, 10));
   std::printf("refiner: %.2f ms/step, %.1f samples/s, loss %.4g -> %.4g\n", 1e3 * r.seconds_per_step,
               r.samples_per_second, mean(r.losses, 0, 10), mean(r.losses, 30, 10));
+}
+
+TEST(Trainer, AFreshRunThatFailsBeforeItsFirstRowLeavesNoLogAndAResumedOneKeepsItsRows) {
+  test::use_one_thread();
+  TrainOptions o = tiny_options("no_header_only_log");
+  fs::remove_all(o.out_dir);
+  o.steps = 2;
+  const TrainResult good = train_module(ModuleKind::kSegmenter, {micro_dataset()}, o);
+  // The trained network with every parameter NaN: a run started from it fails at its first step.
+  CheckpointInfo info;
+  ApparelSegmenter net = load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(
+      good.checkpoint, ModuleKind::kSegmenter, info);
+  {
+    torch::NoGradGuard no_grad;
+    for (at::Tensor p : net->parameters()) p.fill_(std::nan(""));
+  }
+  const std::string poisoned = (test_dir() / "no_header_only_log_nan.ckpt").string();
+  save_checkpoint(poisoned, info, *net, nullptr);
+  TrainOptions fresh = tiny_options("no_header_only_log_fresh");
+  fs::remove_all(fresh.out_dir);
+  fresh.steps = 2;
+  fresh.init = poisoned;
+  EXPECT_NE(error_of([&] { train_module(ModuleKind::kSegmenter, {micro_dataset()}, fresh); })
+                .find("step 1: the loss is not finite"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(fs::path(fresh.out_dir) / "segmenter.csv"));
+  // The good run's log keeps its header and two rows.
+  std::ifstream in(good.log);
+  std::string line;
+  int rows = 0;
+  while (std::getline(in, line)) ++rows;
+  EXPECT_EQ(rows, 3);
 }
 
 TEST(LocalApparel, UnrollScheduleAndNoiseTargetCorrection) {

@@ -55,5 +55,40 @@ TEST(AtomicFile, FailuresKeepTheGoodFileAndNameThePath) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(AtomicFile, AnUnwritableLocationIsRefusedBeforeAnyWork) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("amt_atomic_where_" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "ok");
+  std::ofstream(dir / "blocker") << "a file where a folder should be";
+  // Writable: an existing folder, a folder to create several levels down, a file beside others.
+  EXPECT_NO_THROW(check_writable_location((dir / "ok").string(), "--out"));
+  EXPECT_NO_THROW(check_writable_location((dir / "new" / "deeper" / "report").string(), "--out"));
+  EXPECT_NO_THROW(check_writable_location((dir / "ok" / "x.glb").string(), "--out"));
+  // A regular file on the way: named, with what it is.
+  const std::string blocked = (dir / "blocker" / "report").string();
+  try {
+    check_writable_location(blocked, "--out");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), blocked + ": --out: cannot write into " + (dir / "blocker").string() +
+                                         " (a regular file, not a folder)");
+  }
+  // A folder without write permission (root may write anywhere, so only checked for other users).
+  if (::geteuid() != 0) {
+    std::filesystem::create_directories(dir / "locked");
+    std::filesystem::permissions(dir / "locked", std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    try {
+      check_writable_location((dir / "locked" / "report").string(), "--out");
+      FAIL() << "expected an error";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("cannot write into " + (dir / "locked").string() + " (Permission denied)"),
+                std::string::npos)
+          << e.what();
+    }
+    std::filesystem::permissions(dir / "locked", std::filesystem::perms::owner_all);
+  }
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace amt

@@ -1,0 +1,94 @@
+#include "data_tools/geometry/strain_limit.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "data_tools/geometry/error.h"
+
+namespace amt {
+
+StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& rest, int num_free, int num_fixed,
+                             float max_stretch, int iterations, float weld_length)
+    : num_free_(num_free), num_fixed_(num_fixed), iterations_(iterations), max_stretch_(max_stretch) {
+  AMT_CHECK(size_t(edges.rows()) == rest.size(), "strain limit: expected a rest length per edge (", edges.rows(),
+            "), found ", rest.size());
+  AMT_CHECK(num_free >= 0 && num_fixed >= 0, "strain limit: expected vertex counts >= 0, found ", num_free, " and ",
+            num_fixed);
+  AMT_CHECK(std::isfinite(max_stretch) && max_stretch > 1.0f && max_stretch <= 100.0f,
+            "strain limit: expected a largest stretch in (1, 100], found ", max_stretch);
+  AMT_CHECK(iterations >= 1 && iterations <= 1000, "strain limit: expected 1 to 1000 iterations, found ", iterations);
+  const int n = num_free + num_fixed;
+  // Welded free vertices: union-find, the smallest index of each group its representative.
+  std::vector<int32_t> rep(static_cast<size_t>(num_free));
+  for (int v = 0; v < num_free; ++v) rep[size_t(v)] = v;
+  const auto find = [&](int v) {
+    while (rep[size_t(v)] != v) v = rep[size_t(v)] = rep[size_t(rep[size_t(v)])];
+    return v;
+  };
+  for (Eigen::Index e = 0; e < edges.rows(); ++e) {
+    const int a = edges(e, 0), b = edges(e, 1);
+    AMT_CHECK(a >= 0 && a < n && b >= 0 && b < n && a != b, "strain limit: edge ", e, ": expected two vertices in [0, ",
+              n, "), found (", a, ", ", b, ")");
+    AMT_CHECK(std::isfinite(rest[size_t(e)]) && rest[size_t(e)] >= 0.0f, "strain limit: edge ", e,
+              ": expected a rest length >= 0, found ", rest[size_t(e)]);
+    if (a < num_free && b < num_free && rest[size_t(e)] < weld_length) {
+      const int ra = find(a), rb = find(b);
+      if (ra != rb) rep[size_t(std::max(ra, rb))] = std::min(ra, rb);
+    }
+  }
+  for (int v = 0; v < num_free; ++v) {
+    if (find(v) != v) copies_.insert(copies_.end(), {v, find(v)});
+  }
+  for (Eigen::Index e = 0; e < edges.rows(); ++e) {
+    int a = edges(e, 0), b = edges(e, 1);
+    if (a < num_free) a = find(a);
+    if (b < num_free) b = find(b);
+    if (a >= num_free) std::swap(a, b);
+    if (a >= num_free || a == b) continue;  // both ends fixed, or within one welded point: nothing to move
+    a_.push_back(a);
+    b_.push_back(b);
+    rest_.push_back(rest[size_t(e)]);
+  }
+}
+
+void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
+  if (a_.empty()) return;
+  std::vector<float> delta(size_t(num_free_) * 3);
+  std::vector<int> hits(static_cast<size_t>(num_free_), 0);
+  const auto at = [&](int v) -> const float* {
+    return v < num_free_ ? free_xyz + size_t(v) * 3 : fixed_xyz + size_t(v - num_free_) * 3;
+  };
+  for (int it = 0; it < iterations_; ++it) {
+    std::fill(delta.begin(), delta.end(), 0.0f);
+    std::fill(hits.begin(), hits.end(), 0);
+    bool moved = false;
+    for (size_t e = 0; e < a_.size(); ++e) {
+      const float* pa = at(a_[e]);
+      const float* pb = at(b_[e]);
+      const float d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+      const float length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      const float bound = max_stretch_ * rest_[e];
+      if (!(length > bound) || !(length > 0.0f)) continue;  // within the bound (a NaN is left to the caller's checks)
+      const bool both = b_[e] < num_free_;
+      const float s = (length - bound) / length * (both ? 0.5f : 1.0f);  // share of d each free end moves
+      for (int k = 0; k < 3; ++k) {
+        delta[size_t(a_[e]) * 3 + k] += s * d[k];
+        if (both) delta[size_t(b_[e]) * 3 + k] -= s * d[k];
+      }
+      ++hits[size_t(a_[e])];
+      if (both) ++hits[size_t(b_[e])];
+      moved = true;
+    }
+    if (!moved) break;
+    for (int v = 0; v < num_free_; ++v) {
+      if (hits[size_t(v)] == 0) continue;
+      const float w = 1.0f / float(hits[size_t(v)]);
+      for (int k = 0; k < 3; ++k) free_xyz[size_t(v) * 3 + k] += w * delta[size_t(v) * 3 + k];
+    }
+  }
+  for (size_t k = 0; k < copies_.size(); k += 2) {
+    for (int c = 0; c < 3; ++c) free_xyz[size_t(copies_[k]) * 3 + c] = free_xyz[size_t(copies_[k + 1]) * 3 + c];
+  }
+}
+
+}  // namespace amt

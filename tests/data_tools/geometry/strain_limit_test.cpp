@@ -1,0 +1,105 @@
+// Strain limiting: hand-computed projections (two free ends share the excess, a free end of a fixed edge takes
+// all of it), edges within the bound untouched, welded copies moved as one point, the result independent of the
+// edges' order, convergence on a stretched chain, and bad input.
+#include "data_tools/geometry/strain_limit.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "data_tools/geometry/error.h"
+#include "tests/test_support.h"
+
+namespace amt {
+namespace {
+
+MatrixX2i edge_list(std::initializer_list<std::pair<int, int>> pairs) {
+  MatrixX2i E(Eigen::Index(pairs.size()), 2);
+  Eigen::Index k = 0;
+  for (const auto& [a, b] : pairs) E.row(k++) << a, b;
+  return E;
+}
+
+TEST(StrainLimiter, TwoFreeEndsShareTheExcessAndAFreeEndOfAFixedEdgeTakesAllOfIt) {
+  // Rest 1, stretched to 2, bound 1.5: each end moves 0.25 towards the other.
+  const StrainLimiter both(edge_list({{0, 1}}), {1.0f}, 2, 0, 1.5f, 1);
+  float free2[6] = {0, 0, 0, 2, 0, 0};
+  both.apply(free2, nullptr);
+  EXPECT_FLOAT_EQ(free2[0], 0.25f);
+  EXPECT_FLOAT_EQ(free2[3], 1.75f);
+  EXPECT_FLOAT_EQ(free2[1], 0.0f);
+
+  // Free vertex 0 at (3, 0, 0) on a fixed vertex (index 1 = fixed 0) at the origin, rest 1, bound 1.2: to 1.2.
+  const StrainLimiter pinned(edge_list({{1, 0}}), {1.0f}, 1, 1, 1.2f, 1);
+  float free1[3] = {3, 0, 0};
+  const float fixed1[3] = {0, 0, 0};
+  pinned.apply(free1, fixed1);
+  EXPECT_FLOAT_EQ(free1[0], 1.2f);
+  EXPECT_FLOAT_EQ(free1[1], 0.0f);
+  EXPECT_FLOAT_EQ(free1[2], 0.0f);
+
+  // Within the bound (and compressed): untouched, exactly.
+  float within[6] = {0, 0, 0, 0.3f, 1.1f, 0};
+  both.apply(within, nullptr);
+  EXPECT_EQ(within[3], 0.3f);
+  EXPECT_EQ(within[4], 1.1f);
+}
+
+TEST(StrainLimiter, WeldedCopiesMoveAsOnePointAndAClosedSeamStaysClosed) {
+  // Free 0 and 1 are the two copies of a seam vertex (a link of rest length 0); each has its own edge to a fixed
+  // vertex (2 and 3) that it is stretched from.
+  const MatrixX2i E = edge_list({{0, 1}, {0, 2}, {1, 3}});
+  const StrainLimiter limiter(E, {0.0f, 1.0f, 1.0f}, 2, 2, 1.2f, 4, 1e-3f);
+  float free_xyz[6] = {0, 2, 0, 0, 2, 0};
+  const float fixed_xyz[6] = {0, 0, 0, 0.5f, 0, 0};
+  limiter.apply(free_xyz, fixed_xyz);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(free_xyz[k], free_xyz[3 + k]) << k;
+  // Pulled towards both fixed vertices (it moved, down from y = 2).
+  EXPECT_LT(free_xyz[1], 1.9f);
+  // Without the weld (the link only asks the copies to meet, among other requests) the seam opens.
+  const StrainLimiter unwelded(E, {0.0f, 1.0f, 1.0f}, 2, 2, 1.2f, 4, 0.0f);
+  float open[6] = {0, 2, 0, 0, 2, 0};
+  unwelded.apply(open, fixed_xyz);
+  const float gap = Eigen::Vector3f(open[0] - open[3], open[1] - open[4], open[2] - open[5]).norm();
+  EXPECT_GT(gap, 1e-3f) << open[0] << " " << open[1] << " " << open[3] << " " << open[4];
+}
+
+TEST(StrainLimiter, TheResultDoesNotDependOnTheEdgesOrderAndAChainConverges) {
+  // A chain of 6 free vertices hanging from fixed vertex 6, rest 0.1 each, stretched to 0.3 each along a zigzag.
+  const MatrixX2i forward = edge_list({{6, 0}, {0, 1}, {1, 2}, {2, 3}, {3, 4}, {4, 5}});
+  const MatrixX2i backward = edge_list({{5, 4}, {3, 4}, {2, 3}, {2, 1}, {1, 0}, {0, 6}});
+  const std::vector<float> rest(6, 0.1f);
+  float a[18], b[18];
+  for (int v = 0; v < 6; ++v) {
+    a[3 * v] = b[3 * v] = 0.05f * float(v % 2);
+    a[3 * v + 1] = b[3 * v + 1] = -0.3f * float(v + 1);
+    a[3 * v + 2] = b[3 * v + 2] = 0.0f;
+  }
+  const float fixed[3] = {0, 0, 0};
+  StrainLimiter(forward, rest, 6, 1, 1.1f, 8).apply(a, fixed);
+  StrainLimiter(backward, rest, 6, 1, 1.1f, 8).apply(b, fixed);
+  for (int k = 0; k < 18; ++k) EXPECT_FLOAT_EQ(a[k], b[k]) << k;
+  // Many iterations: every edge within the bound.
+  StrainLimiter(forward, rest, 6, 1, 1.1f, 1000).apply(a, fixed);
+  const auto point = [&](int v) { return v == 6 ? Eigen::Vector3f(0, 0, 0) : Eigen::Vector3f(a[3 * v], a[3 * v + 1], a[3 * v + 2]); };
+  for (Eigen::Index e = 0; e < forward.rows(); ++e)
+    EXPECT_LE((point(forward(e, 0)) - point(forward(e, 1))).norm(), 0.11f + 1e-4f) << e;
+}
+
+TEST(StrainLimiter, BadInputIsAClearError) {
+  EXPECT_NE(test::error_of([] { StrainLimiter(edge_list({{0, 5}}), {1.0f}, 2, 1, 1.2f); })
+                .find("strain limit: edge 0: expected two vertices in [0, 3), found (0, 5)"),
+            std::string::npos);
+  EXPECT_NE(test::error_of([] { StrainLimiter(edge_list({{0, 1}}), {-1.0f}, 2, 0, 1.2f); })
+                .find("expected a rest length >= 0, found -1"),
+            std::string::npos);
+  EXPECT_NE(test::error_of([] { StrainLimiter(edge_list({{0, 1}}), {1.0f}, 2, 0, 1.0f); })
+                .find("expected a largest stretch in (1, 100], found 1"),
+            std::string::npos);
+  EXPECT_NE(test::error_of([] { StrainLimiter(edge_list({{0, 1}}), {}, 2, 0, 1.2f); })
+                .find("expected a rest length per edge (1), found 0"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace amt
