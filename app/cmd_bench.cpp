@@ -62,6 +62,7 @@ struct BenchOptions {
   bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
   bool reference_apparel = false;  // runtime suite: the global apparel form's network timed beside the model's
   bool refine = false;             // runtime suite: the refiner after the apparel module (amt animate --refiner)
+  float strain_limit = kDefaultStrainLimit;  // runtime suite: amt animate --strain-limit
   std::vector<std::string> data;  // segmenter suite: dataset shards or folders
   std::string segmenter;          // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
   std::string split = "test";     // segmenter suite: the characters scored
@@ -199,6 +200,7 @@ void bench_runtime(const BenchOptions& o) {
     options.repeats = o.repeats;
     options.reference_apparel = o.reference_apparel;
     options.refine = o.refine;
+    options.strain_limit = o.strain_limit;
     const RuntimeFigures r = measure_runtime(bundle, options);
     const int N = r.vertices;
     std::printf(
@@ -380,6 +382,10 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--refiner", options->refine,
                   "Runtime suite: also run the model's joint refiner, as amt animate --refiner (off by default, as "
                   "in amt animate)");
+  bench->add_option("--strain-limit", options->strain_limit,
+                    "Runtime suite: the learned apparel's stretch limit, as amt animate --strain-limit (0: off)")
+      ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
+      ->capture_default_str();
   bench->add_flag("--reference-apparel", options->reference_apparel,
                   "Runtime suite: also time the global apparel form's network (the form the local one replaced, at "
                   "its shipped widths) beside the model's, frame by frame, and print the ratio");

@@ -37,6 +37,8 @@ struct RuntimeBenchmarkOptions {
   /// Run the joint refiner after the apparel module, as `amt animate --refiner` (off by default, as in
   /// `amt animate`).
   bool refine = false;
+  /// The learned apparel's stretch limit, as `amt animate --strain-limit` (0: off).
+  float strain_limit = kDefaultStrainLimit;
   /// Folder for the scratch GLB (removed afterwards).
   std::string scratch_dir;
 };

@@ -6,7 +6,9 @@
 #   before: the model as shipped before apparel moved on handles: the apparel module that moves every apparel
 #           vertex (models/pretrained/apparel_vertices.ckpt) with the refiner after it, the segmenter before its
 #           artist-style fine-tune (models/pretrained/segmenter_base.ckpt), the shipped skinning predictor;
-#   after:  the shipped model as `amt animate` runs it (the apparel module on handles, no refiner).
+#           (no stretch limit: `--strain-limit 0`);
+#   after:  the shipped model as `amt animate` runs it (the apparel module on handles with the stretch limit, no
+#           refiner).
 # Builds `amt` and the held-out shard if missing (the default dataset's character 28: seed 1, `--shard 28/32`).
 #
 # Environment: AMT_BUILD_DIR (default build), AMT_DATASET_DIR (default data/default), AMT_OUT (default
@@ -39,9 +41,10 @@ cp models/pretrained/segmenter_base.ckpt "$before/segmenter.ckpt"
 
 for run in before after; do
   model=$([ "$run" = before ] && echo "$before" || echo models/pretrained)
-  refiner=$([ "$run" = before ] && echo --refiner || true)
+  # before: as it ran then, the refiner after the module and no stretch limit
+  extra=$([ "$run" = before ] && echo "--refiner --strain-limit 0" || true)
   "$amt" animate --character "$out/$character.h5:$character" --motion "$out/$character.h5:$clip" \
-    --model "$model" --apparel-mask model --bind none --threads 1 $refiner \
+    --model "$model" --apparel-mask model --bind none --threads 1 $extra \
     --out "$out/$run.glb" --picture "$figures/artist_style_$run.png"
 done
 echo "artist_style_pictures: wrote $figures/artist_style_before.png and $figures/artist_style_after.png"

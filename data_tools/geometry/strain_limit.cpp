@@ -48,42 +48,47 @@ StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& r
     a_.push_back(a);
     b_.push_back(b);
     rest_.push_back(rest[size_t(e)]);
+    bound2_.push_back(max_stretch * rest[size_t(e)] * max_stretch * rest[size_t(e)]);
   }
 }
 
 void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
   if (a_.empty()) return;
-  std::vector<float> delta(size_t(num_free_) * 3);
+  // Per iteration only the edges past their bound do work (a squared-length test first, no square root), and only
+  // the vertices they touch are updated and cleared.
+  std::vector<float> delta(size_t(num_free_) * 3, 0.0f);
   std::vector<int> hits(static_cast<size_t>(num_free_), 0);
+  std::vector<int32_t> touched;
   const auto at = [&](int v) -> const float* {
     return v < num_free_ ? free_xyz + size_t(v) * 3 : fixed_xyz + size_t(v - num_free_) * 3;
   };
   for (int it = 0; it < iterations_; ++it) {
-    std::fill(delta.begin(), delta.end(), 0.0f);
-    std::fill(hits.begin(), hits.end(), 0);
-    bool moved = false;
+    touched.clear();
     for (size_t e = 0; e < a_.size(); ++e) {
       const float* pa = at(a_[e]);
       const float* pb = at(b_[e]);
       const float d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
-      const float length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      const float squared = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      if (!(squared > bound2_[e]) || !(squared > 0.0f)) continue;  // within the bound (a NaN is left to the caller)
+      const float length = std::sqrt(squared);
       const float bound = max_stretch_ * rest_[e];
-      if (!(length > bound) || !(length > 0.0f)) continue;  // within the bound (a NaN is left to the caller's checks)
       const bool both = b_[e] < num_free_;
       const float s = (length - bound) / length * (both ? 0.5f : 1.0f);  // share of d each free end moves
       for (int k = 0; k < 3; ++k) {
         delta[size_t(a_[e]) * 3 + k] += s * d[k];
         if (both) delta[size_t(b_[e]) * 3 + k] -= s * d[k];
       }
-      ++hits[size_t(a_[e])];
-      if (both) ++hits[size_t(b_[e])];
-      moved = true;
+      if (hits[size_t(a_[e])]++ == 0) touched.push_back(a_[e]);
+      if (both && hits[size_t(b_[e])]++ == 0) touched.push_back(b_[e]);
     }
-    if (!moved) break;
-    for (int v = 0; v < num_free_; ++v) {
-      if (hits[size_t(v)] == 0) continue;
+    if (touched.empty()) break;
+    for (const int32_t v : touched) {
       const float w = 1.0f / float(hits[size_t(v)]);
-      for (int k = 0; k < 3; ++k) free_xyz[size_t(v) * 3 + k] += w * delta[size_t(v) * 3 + k];
+      for (int k = 0; k < 3; ++k) {
+        free_xyz[size_t(v) * 3 + k] += w * delta[size_t(v) * 3 + k];
+        delta[size_t(v) * 3 + k] = 0.0f;
+      }
+      hits[size_t(v)] = 0;
     }
   }
   for (size_t k = 0; k < copies_.size(); k += 2) {

@@ -40,7 +40,7 @@ class StrainLimiter {
  private:
   std::vector<int32_t> a_, b_;  // a_ free; b_ free or fixed (>= num_free_); free ends are representatives
   std::vector<int32_t> copies_;  // (copy, representative) pairs of welded free vertices, flattened
-  std::vector<float> rest_;
+  std::vector<float> rest_, bound2_;  // rest lengths, (max_stretch x rest)^2
   int num_free_ = 0, num_fixed_ = 0, iterations_ = 0;
   float max_stretch_ = 0;
 };
