@@ -1,5 +1,5 @@
 #pragma once
-// Simulation of a dressed character's apparel under a body motion (DESIGN.md section 6): per output frame, pose the
+// Simulation of a dressed character's apparel under a body motion (README, "The dataset builder"): per output frame, pose the
 // body bones -> kinematic capsules follow (swept over the substeps) -> Bullet steps at 1/120 s -> simulated apparel
 // bones written back -> skinning matrices of every rig bone (the dataset's rig_transforms of that frame).
 #include "data_tools/builder/apparel.h"

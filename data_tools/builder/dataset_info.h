@@ -1,6 +1,6 @@
 #pragma once
 // `amt dataset info`: a human-readable summary of a dataset file or of a dataset folder
-// (DESIGN.md sections 4 and 7).
+// (README, "Dataset format (HDF5, format `amt-dataset`, version 2)" and "The `amt` program").
 #include <cstdint>
 #include <ostream>
 #include <string>

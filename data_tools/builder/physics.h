@@ -1,5 +1,5 @@
 #pragma once
-// Rigid-body physics of the dataset builder (DESIGN.md section 6): MMD-style rigs of bones, rigid bodies and spring
+// Rigid-body physics of the dataset builder (README, "The dataset builder"): MMD-style rigs of bones, rigid bodies and spring
 // 6-DOF joints, simulated with Bullet. Bullet stays inside physics.cpp: this header needs only Eigen.
 //
 // Conventions. A rig lives in one frame and one length unit: metres for procedural characters, PMX units for
