@@ -149,7 +149,7 @@ MotionPlayer::MotionPlayer(const SourceMotion& source, const RuntimeCharacter& c
   AMT_CHECK(options.frames >= 0, "--frames: expected a non-negative count, found ", options.frames);
   const bool same_character = !source.dataset.empty() && source.dataset == character.dataset &&
                               source.dataset_character == character.dataset_character;
-  // File motions play at 30 fps unless told (DESIGN.md section 3); dataset clips at their own rate.
+  // File motions play at 30 fps unless told (docs/characters.md, "Conventions"); dataset clips at their own rate.
   std::optional<float> fps = options.fps;
   if (!fps && source.dataset.empty()) fps = 30.0f;
   const bool same_rate = !fps || std::abs(*fps - source.motion.fps) < 1e-4f;

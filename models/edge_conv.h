@@ -2,7 +2,7 @@
 // Edge convolution [31] over a fixed mesh graph (paper eq. 13), as one affine edge layer followed
 // by a LeakyReLU (DGCNN's block):
 //   H'_i = max_{j in N(i)} sigma(W [H_i, H_j - H_i] + b).
-// Factorised (DESIGN.md section 1): with W = [W1 | W2], W [h_i, h_j - h_i] + b = (W1 - W2) h_i + b
+// Factorised (docs/runtime.md, "What makes it fast"): with W = [W1 | W2], W [h_i, h_j - h_i] + b = (W1 - W2) h_i + b
 // + W2 h_j, so both terms are per-vertex matrix products; and since sigma is monotonic,
 // max_j sigma(a_i + b_j) = sigma(a_i + max_j b_j), a per-vertex product plus one neighbour max.
 // Channels that are the same for every vertex (a global code broadcast to all of them) cancel in

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs every build and run dependency of amt from Debian packages (DESIGN.md section 8).
+# Installs every build and run dependency of amt from Debian packages (docs/architecture.md, "The layers of the code").
 # Idempotent: packages already present are skipped; `apt-get update` runs at most once, and only
 # when something is missing. Needs root (or sudo) only when it has something to install.
 set -euo pipefail

@@ -32,7 +32,7 @@ inline constexpr const char* kCheckpointFormat = "amt-checkpoint";
 /// Value of the key `version` this code writes and reads.
 inline constexpr int64_t kCheckpointVersion = 1;
 
-/// The module a checkpoint holds (DESIGN.md section 1).
+/// The module a checkpoint holds (docs/architecture.md, "The pipeline").
 enum class ModuleKind { kSegmenter, kSkinning, kApparel, kRefiner };
 
 /// "segmenter", "skinning", "apparel" or "refiner".

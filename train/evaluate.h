@@ -1,5 +1,5 @@
 #pragma once
-// Evaluation of a trained model on a dataset's held-out data (DESIGN.md section 5, paper 5.3 and
+// Evaluation of a trained model on a dataset's held-out data (docs/evaluation.md; paper 5.3 and
 // Tables 2-4): every method runs through the one forward path of train/pipeline.h, and is scored with
 // data_tools/geometry/metrics.h (PMD, PMD_a, PMD_b in cm, ELS, penetration share and depth; vertex -> frame ->
 // clip averaging of ScoreAccumulator) in two protocols:

@@ -1,5 +1,5 @@
 #pragma once
-// The full model's forward pass (paper section 4, DESIGN.md section 1), the one code path that the
+// The full model's forward pass (paper section 4, docs/architecture.md, "The pipeline"), the one code path that the
 // evaluation (train/evaluate.h) and the CPU runtime (infer/) share:
 //   load_model_bundle  the four trained modules from one folder of checkpoints;
 //   bind_character     per-character work that depends only on the rest mesh (segmentation,

@@ -1,5 +1,5 @@
 #pragma once
-// Training samples streamed from dataset shards (DESIGN.md section 4): per-character tensors
+// Training samples streamed from dataset shards (docs/dataset.md, "The dataset file"): per-character tensors
 // computed once from the rest mesh and cached, and per-sample frame windows read from HDF5 as
 // hyperslabs (a clip is never loaded whole). Which sample comes k-th is a pure function of
 // (seed, k), so a run resumed at step s sees exactly the samples an uninterrupted run sees; the

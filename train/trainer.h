@@ -1,5 +1,5 @@
 #pragma once
-// Trainers of the four modules (DESIGN.md section 1, paper section 5.2): AdamW at 1e-4, one seeded
+// Trainers of the four modules (docs/training.md, paper section 5.2): AdamW at 1e-4, one seeded
 // sample sequence per run (train/samples.h), a single versioned checkpoint file per module written
 // every K steps and at the end (train/checkpoint.h), a CSV log, a validation loss on held-out
 // windows every K steps, and a progress line on stderr. The apparel module and the refiner also
@@ -221,7 +221,7 @@ struct TrainResult {
 /// or version, a dataset whose skeleton or fingerprint differs from the checkpoint's, a missing shard.
 TrainResult train_module(ModuleKind kind, const std::vector<std::string>& shards, const TrainOptions& options);
 
-/// Trains the apparel module and the refiner end to end (DESIGN.md section 1, paper section 5.2):
+/// Trains the apparel module and the refiner end to end (docs/training.md, paper section 5.2):
 /// on windows of T = options.window frames of any clip, the apparel module rolls out T - 3 frames
 /// from 3 ground-truth states (eq. 11), the result is tiled with B̂ (LBS with the weights of
 /// options.skinning_checkpoint, or the ground-truth ones) and refined (eq. 16); the loss is

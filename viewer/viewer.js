@@ -6,7 +6,7 @@
 //    "groups": [{"title": "...", "items": [{"file": "x.glb", "label": "prediction", "role": "prediction"}, ...]}]}
 // role is "prediction", "ground_truth", "skinning" or anything else (shown by its label). One group plays
 // at a time (a select switches); with a "ground_truth" item, every other item of the same vertex count
-// gets its PMD_a per frame (DESIGN.md section 5: mean distance in cm over the ground truth's apparel
+// gets its PMD_a per frame (docs/evaluation.md, "Metrics": mean distance in cm over the ground truth's apparel
 // vertices, no alignment) and over the clip.
 //
 // Query options: ?group=I (which group first), ?frame=K (start at frame K), ?paused=1.

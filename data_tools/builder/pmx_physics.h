@@ -1,7 +1,7 @@
 #pragma once
 // The physics rig of a PMX model (data_tools/formats/pmx_import.h) for data_tools/builder/physics.h, in the file's own frame and
 // units (PmxFrame::kMmd), where MMD simulates it and where its tuned masses, damping and springs behave as authored
-// (DESIGN.md section 6). Simulated bone transforms are brought to amt's frame with pmx_transforms_to_amt.
+// (docs/dataset.md, "Your own PMX models"). Simulated bone transforms are brought to amt's frame with pmx_transforms_to_amt.
 #include <cstdint>
 #include <vector>
 

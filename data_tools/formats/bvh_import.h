@@ -1,6 +1,6 @@
 #pragma once
 // BVH (Biovision Hierarchy) motion import: a parser for the raw file, its conversion to amt's data
-// model (DESIGN.md section 3: metres, rotations relative to the rest pose), unit detection, frame-rate
+// model (docs/architecture.md, "The data model": metres, rotations relative to the rest pose), unit detection, frame-rate
 // resampling, and the import onto the canonical 22-joint skeleton through data_tools/formats/joint_map.h.
 //
 // Conventions read from the file, as most BVH tools read them:

@@ -1,5 +1,5 @@
 #pragma once
-// The canonical 22-joint skeleton of a file's skeleton (DESIGN.md section 3): the joints that the name tables and the
+// The canonical 22-joint skeleton of a file's skeleton (docs/architecture.md, "The data model"): the joints that the name tables and the
 // structure map (data_tools/formats/joint_map.h), the canonical joints the file lacks placed between their mapped
 // neighbours, and for every file joint the canonical joint that carries it. Shared by the runtime's characters
 // (infer/character_input.h) and the dataset builder's PMX characters (data_tools/builder/pmx_dataset.h). Real

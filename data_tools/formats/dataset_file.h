@@ -1,5 +1,5 @@
 #pragma once
-// The dataset file (DESIGN.md section 4): HDF5, format "amt-dataset", version 1. Characters (rest
+// The dataset file (docs/dataset.md, "The dataset file"): HDF5, format "amt-dataset", version 1. Characters (rest
 // mesh, skeleton, apparel mask, body skinning weights, optional simulation rig) and clips (joint
 // transforms per frame plus ground-truth vertices, stored directly or as rig skinning matrices).
 //
@@ -45,8 +45,8 @@ using MatrixXiR = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::
 
 // === Data
 
-/// The simulation rig a character's apparel was simulated with (MMD-style bones, DESIGN.md section
-/// 6). Bones need not be in topological order; rest transforms are global.
+/// The simulation rig a character's apparel was simulated with (MMD-style bones, docs/dataset.md,
+/// "What the builder makes"). Bones need not be in topological order; rest transforms are global.
 struct Rig {
   /// B bone names.
   std::vector<std::string> bone_names;

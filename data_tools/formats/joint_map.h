@@ -1,5 +1,5 @@
 #pragma once
-// Mapping a file's skeleton onto the canonical 22-joint body skeleton (DESIGN.md section 3): built-in
+// Mapping a file's skeleton onto the canonical 22-joint body skeleton (docs/characters.md, "Joint maps"): built-in
 // joint-name tables of the common conventions, the skeleton's structure for the joints those leave
 // open, and a user map (`--joint-map FILE`). Format-independent: BVH, glTF and PMX skeletons all come
 // here as joint names and parents, and their motions as a Skeleton plus a Motion.

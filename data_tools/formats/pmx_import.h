@@ -1,6 +1,6 @@
 #pragma once
 // PMX 2.0 / 2.1 reader (MikuMikuDance models): mesh, skinning, bones with IK, rigid bodies and spring joints,
-// the rig that DESIGN.md section 6 simulates. Hand-written: no Debian package reads PMX.
+// the rig that docs/dataset.md ("Your own PMX models") simulates. Hand-written: no Debian package reads PMX.
 //
 // Two frames. A PmxModel holds either the file's values untouched (PmxFrame::kMmd: PMX units, 1 unit ~ 8 cm,
 // MMD's left-handed frame, Y up, characters facing -Z, their left on +X) or the same model in amt's conventions
@@ -192,7 +192,7 @@ struct PmxBone {
   PmxIk ik;                                                ///< set when is_ik
 };
 
-/// A rigid body of the physics rig (DESIGN.md section 6).
+/// A rigid body of the physics rig (docs/dataset.md, "Your own PMX models").
 struct PmxRigidBody {
   std::string name;          ///< UTF-8
   std::string name_english;  ///< UTF-8
@@ -233,7 +233,7 @@ struct PmxJoint {
   Eigen::Vector3f angular_min = Eigen::Vector3f::Zero();  ///< rotation limits about the joint axes (radians)
   Eigen::Vector3f angular_max = Eigen::Vector3f::Zero();
   /// Spring stiffness on the translation axes, as authored (unchanged by conversion: the physics runs in PMX
-  /// units, DESIGN.md section 6).
+  /// units, docs/dataset.md, "Your own PMX models").
   Eigen::Vector3f spring_linear = Eigen::Vector3f::Zero();
   /// Spring stiffness on the rotation axes, as authored (unchanged by conversion).
   Eigen::Vector3f spring_angular = Eigen::Vector3f::Zero();

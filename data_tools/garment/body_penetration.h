@@ -1,5 +1,5 @@
 #pragma once
-// The penetration measure (DESIGN.md section 5) of one mesh in many poses: the mesh's vertices split
+// The penetration measure (docs/evaluation.md, "Metrics") of one mesh in many poses: the mesh's vertices split
 // into body and apparel by a mask, the body surface is the faces with three body vertices, and every
 // pose asks how many apparel vertices lie inside that surface and how deep. The body surface gets one
 // winding-number tree, built on the rest pose and refitted to each pose (WindingNumberTree::refit, O(#F))

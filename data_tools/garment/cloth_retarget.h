@@ -33,7 +33,7 @@
 // The penetration before and after the resolution is measured per frame and reported (section 3.2
 // admits residual penetration; the resolver re-tests every vertex it moved).
 //
-// Characters are whole meshes split by their apparel mask, as in the dataset (DESIGN.md section 4):
+// Characters are whole meshes split by their apparel mask, as in the dataset (docs/dataset.md, "The dataset file"):
 // the body part is the faces whose three vertices are body vertices (garment bands included), the
 // apparel the vertices of mask 1, in ascending index order on both characters.
 #include <cstdint>

@@ -1,8 +1,8 @@
 #pragma once
 // Penetration resolution, the post-process of the runtime (issue 6, item 5) and of cloth retargeting
 // (issue 13): apparel vertices found inside the body are pushed out along the body surface normal by
-// their depth plus a small margin, as in the cloth-retargeting paper (papers/cloth_motion_retargeting.md,
-// section 3.2: "moving the penetrating cloth vertices in the direction of the normal vectors ... by the
+// their depth plus a small margin, as in the paper "Cloth Motion Retargeting"
+// (section 3.2: "moving the penetrating cloth vertices in the direction of the normal vectors ... by the
 // extent of the penetrations"); the push is then spread to the untouched apparel neighbours with a decaying
 // weight, so that a pushed vertex does not become a spike in its garment.
 //

@@ -1,6 +1,6 @@
 #pragma once
 // Vertex-to-joint geodesic distances G (N, J) for the skinning predictor's geodesic attention
-// (DESIGN.md section 1, paper section 4): shortest paths along mesh edges from each joint's anchor
+// (docs/architecture.md, "The pipeline"; paper section 4.2): shortest paths along mesh edges from each joint's anchor
 // vertex, over an edge graph whose disconnected parts (hair, eyes, accessories) are joined by
 // nearest-point "bridge" edges so that every entry of G is finite.
 #include <vector>

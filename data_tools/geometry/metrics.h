@@ -1,5 +1,5 @@
 #pragma once
-// Evaluation metrics of DESIGN.md section 5 (paper 5.3): PMD, PMD_a, PMD_b (cm), the edge length
+// Evaluation metrics of docs/evaluation.md, "Metrics" (paper 5.3): PMD, PMD_a, PMD_b (cm), the edge length
 // score ELS, body-apparel penetration, and apparel segmentation IoU / F1. The same measures on
 // torch tensors are in data_tools/geometry/metrics_torch.h.
 #include <vector>

@@ -1,6 +1,6 @@
 #pragma once
 // Skeletons: joint names, parents and rest positions; the canonical 22-joint body skeleton
-// (DESIGN.md section 3) that every motion and character is mapped onto.
+// (docs/architecture.md, "The data model") that every motion and character is mapped onto.
 #include <string>
 #include <vector>
 
@@ -34,7 +34,7 @@ void validate_skeleton(const Skeleton& skeleton, const std::string& source);
 /// Number of canonical body joints (the 22 SMPL body joints).
 constexpr int kCanonicalJointCount = 22;
 
-/// Canonical joint indices, in the order of DESIGN.md section 3.
+/// Canonical joint indices, in the order of docs/characters.md, "Conventions".
 enum CanonicalJoint : int {
   kPelvis, kLeftHip, kRightHip, kSpine1, kLeftKnee, kRightKnee, kSpine2, kLeftAnkle, kRightAnkle, kSpine3,
   kLeftFoot, kRightFoot, kNeck, kLeftCollar, kRightCollar, kHead, kLeftShoulder, kRightShoulder, kLeftElbow,

@@ -1,6 +1,6 @@
 #pragma once
-// Inside test and distance against a closed body surface, for the penetration metric (DESIGN.md
-// section 5): the generalized winding number (Jacobson et al. 2013, "Robust inside-outside
+// Inside test and distance against a closed body surface, for the penetration metric (docs/evaluation.md,
+// "Metrics"): the generalized winding number (Jacobson et al. 2013, "Robust inside-outside
 // segmentation using generalized winding numbers"), accelerated with a bounding-volume hierarchy and
 // a far-field expansion of each subtree about its centre (Barill et al. 2018, "Fast winding numbers
 // for soups and clouds", their second-order Taylor expansion); and the unsigned distance to the

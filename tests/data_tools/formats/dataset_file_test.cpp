@@ -1,4 +1,4 @@
-// The dataset file (DESIGN.md section 4): write -> read round trips, streaming frame ranges, rig
+// The dataset file (docs/dataset.md, "The dataset file"): write -> read round trips, streaming frame ranges, rig
 // ground truth against hand-computed skinning, the writer's atomic commit, and one amt::Error naming
 // the file and the field for every kind of bad input.
 #include "data_tools/formats/dataset_file.h"
