@@ -29,7 +29,7 @@ struct TrainCommand {
   bool quiet = false;
   // Data-parallel run as given on the command line (world_size 0, rank -1: not given; the environment
   // may give them).
-  DistributedOptions distributed{0, -1, "", 300.0};
+  DistributedOptions distributed{0, -1, "", 300.0, ""};
 };
 
 // Bytes in KiB with one decimal.
@@ -270,8 +270,17 @@ void add_train_command(CLI::App& app) {
   train->add_option("--rank", d.rank, "Data-parallel run: this process's rank in [0, world size) (default: RANK)")
       ->check(CLI::NonNegativeNumber);
   train->add_option("--rendezvous", d.rendezvous,
-                    "Data-parallel run: where the ranks meet, tcp://HOST:PORT (rank 0's address) or file://PATH (a "
-                    "new file every rank sees) (default: tcp://MASTER_ADDR:MASTER_PORT)");
+                    "Data-parallel run: where the ranks meet, tcp://HOST:PORT (rank 0 listens on HOST's address "
+                    "only: 127.0.0.1 keeps the run on this machine) or file://PATH (a path every rank sees, free or "
+                    "left by an earlier amt run; rank 0 starts a new run there, the others wait for it) (default: "
+                    "tcp://MASTER_ADDR:MASTER_PORT); see docs/distributed_security.md");
+  train->add_option("--dist-token", d.token,
+                    "Data-parallel run: the shared secret every rank presents to a tcp:// rendezvous, 16 to 256 "
+                    "printable characters, the same on every rank (default: AMT_DIST_TOKEN, which unlike the command "
+                    "line other users cannot see in the process list). Needed for an address other than loopback; "
+                    "on a loopback address without one, rank 0 generates one and writes it to "
+                    "~/.cache/amt/rendezvous-HOST-PORT.token (mode 0600), where the other ranks of the same user "
+                    "read it");
   train
       ->add_option("--dist-timeout", d.timeout_seconds,
                    "Data-parallel run: seconds to wait for every rank to join and for the others at each step before "

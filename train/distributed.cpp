@@ -6,7 +6,6 @@
 #include <torch/csrc/distributed/c10d/FileStore.hpp>
 #include <torch/csrc/distributed/c10d/PrefixStore.hpp>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
-#include <torch/csrc/distributed/c10d/TCPStore.hpp>
 #include <glog/logging.h>  // c10's logging, which c10d's socket code writes to
 
 #include <algorithm>
@@ -16,10 +15,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <sstream>
 
 #include "data_tools/geometry/error.h"
+#include "train/rendezvous_store.h"
 
 namespace amt {
 namespace {
@@ -48,10 +49,6 @@ std::string seconds_text(double seconds) {
   std::ostringstream out;
   out << seconds << " s";
   return out.str();
-}
-
-bool is_loopback(const std::string& host) {
-  return host == "localhost" || host.rfind("127.", 0) == 0 || host == "::1";
 }
 
 }  // namespace
@@ -125,6 +122,12 @@ DistributedOptions resolve_distributed_options(DistributedOptions given,
   if (o.world_size == 1) return o;
   AMT_CHECK(rank_given, rank_from, ": expected this process's rank in [0, ", o.world_size, ") with ", world_from, " ",
             o.world_size, ", found none (give --rank or set RANK)");
+  std::string token_from = "--dist-token";
+  if (o.token.empty()) {
+    o.token = env("AMT_DIST_TOKEN");
+    token_from = "AMT_DIST_TOKEN";
+  }
+  if (!o.token.empty()) check_token(o.token, token_from);
   if (o.rendezvous.empty()) {
     const std::string address = env("MASTER_ADDR"), port = env("MASTER_PORT");
     AMT_CHECK(!address.empty() || !port.empty(), "--rendezvous: expected tcp://HOST:PORT or file://PATH with ",
@@ -137,7 +140,12 @@ DistributedOptions resolve_distributed_options(DistributedOptions given,
     const bool ipv6 = address.find(':') != std::string::npos;
     o.rendezvous = "tcp://" + (ipv6 ? "[" + address + "]" : address) + ":" + port;
   }
-  parse_rendezvous(o.rendezvous);
+  const Rendezvous rendezvous = parse_rendezvous(o.rendezvous);
+  // Anyone who reaches a non-loopback address could join the run (and read and write its store) without one.
+  AMT_CHECK(rendezvous.scheme != "tcp" || !o.token.empty() || is_loopback_host(rendezvous.host),
+            "--dist-token: the rendezvous ", o.rendezvous,
+            " is not on a loopback address, so every rank must present a shared token: give each rank the same "
+            "--dist-token or AMT_DIST_TOKEN (16 to 256 characters, e.g. from `openssl rand -hex 32`)");
   return o;
 }
 
@@ -147,12 +155,28 @@ struct DataParallelGroup::State {
   DistributedOptions options;
   Rendezvous rendezvous;
   std::chrono::milliseconds timeout{0};
+  // file://: amt's marker, held by rank 0 while the run lives (destroyed after the store).
+  std::unique_ptr<FileRendezvous> file_rendezvous;
+  // Rank 0 of a loopback tcp:// run without a given token: the token it generated and the file the
+  // other local ranks read it from.
+  std::string generated_token, token_file;
   c10::intrusive_ptr<c10d::Store> store;
   c10::intrusive_ptr<c10d::ProcessGroupGloo> group;
   int64_t same_checks = 0;
   double communication_seconds = 0.0, allreduce_seconds = 0.0;
   int64_t communication_count = 0;
   int64_t gradient_bytes = 0;
+
+  ~State() {
+    // The token file goes while the store still holds the port, so it can only be this run's.
+    if (!token_file.empty()) {
+      std::error_code ignored;
+      std::ifstream in(token_file);
+      std::string text;
+      std::getline(in, text);
+      if (text == generated_token) std::filesystem::remove(token_file, ignored);
+    }
+  }
 
   // "data-parallel run tcp://host:port, rank 1 of 2".
   std::string where() const {
@@ -190,20 +214,44 @@ DataParallelGroup::DataParallelGroup(const DistributedOptions& options) : state_
     AMT_CHECK(std::filesystem::is_directory(folder, error), "--rendezvous ", options.rendezvous, ": no folder ",
               folder.string(), " (expected file://PATH in a folder every rank sees)");
   }
+  AMT_CHECK(!tcp || !options.token.empty() || is_loopback_host(s.rendezvous.host), "--dist-token: the rendezvous ",
+            options.rendezvous, " is not on a loopback address: give every rank the same --dist-token or AMT_DIST_TOKEN");
   try {
     if (tcp) {
-      c10d::TCPStoreOptions store_options;
-      store_options.port = static_cast<uint16_t>(s.rendezvous.port);
-      store_options.isServer = options.rank == 0;
-      store_options.numWorkers = static_cast<size_t>(options.world_size);
-      store_options.waitWorkers = false;  // the Gloo mesh below waits for every rank, with the timeout
+      RendezvousStore::Options store_options;
+      store_options.host = s.rendezvous.host;
+      store_options.port = s.rendezvous.port;
+      store_options.serve = options.rank == 0;
+      // One connection per rank, and room for strangers, who are turned away within seconds.
+      store_options.max_connections = std::min(options.world_size, 4096) + 16;
       store_options.timeout = s.timeout;
-      s.store = c10::make_intrusive<c10d::TCPStore>(s.rendezvous.host, store_options);
+      store_options.token = options.token;
+      if (options.token.empty()) {
+        const std::string path = local_token_path(s.rendezvous.host, s.rendezvous.port);
+        if (options.rank == 0) {
+          // Written once the port is bound (a rank 0 that cannot bind must not replace a live run's token)
+          // and before it accepts connections (a rank that connects finds the token of this run).
+          s.generated_token = generate_token();
+          store_options.token = s.generated_token;
+          store_options.bound = [&s, path](int) {
+            write_local_token(path, s.generated_token);
+            s.token_file = path;
+          };
+        } else {
+          store_options.read_token = [path] { return read_local_token(path); };
+        }
+      }
+      s.store = c10::make_intrusive<RendezvousStore>(store_options);
     } else {
-      s.store = c10::make_intrusive<c10d::FileStore>(s.rendezvous.path, options.world_size);
+      s.file_rendezvous = std::make_unique<FileRendezvous>(s.rendezvous.path, options.rank == 0, s.timeout);
+      s.store = c10::make_intrusive<c10d::FileStore>(s.file_rendezvous->store_path(), options.world_size);
     }
     s.store->setTimeout(s.timeout);
+  } catch (const RendezvousRefused& e) {
+    fail(s.where(), ": ", e.what());
   } catch (const std::exception& e) {
+    // FileRendezvous's refusals and timeouts are complete lines; c10d's errors are not.
+    if (!tcp && dynamic_cast<const Error*>(&e)) fail(s.where(), ": ", e.what());
     if (tcp && options.rank == 0) {
       fail(s.where(), ": cannot listen on port ", s.rendezvous.port, " of ", s.rendezvous.host,
            " (--rendezvous: expected a free port on rank 0's address) [", first_line(e.what()), "]");
@@ -221,7 +269,7 @@ DataParallelGroup::DataParallelGroup(const DistributedOptions& options) : state_
     // to none of this machine's addresses).
     if (const char* interface = std::getenv("GLOO_SOCKET_IFNAME"); interface && *interface) {
       group_options->devices.push_back(c10d::ProcessGroupGloo::createDeviceForInterface(interface));
-    } else if (tcp && is_loopback(s.rendezvous.host)) {
+    } else if (tcp && is_loopback_host(s.rendezvous.host)) {
       group_options->devices.push_back(c10d::ProcessGroupGloo::createDeviceForHostname("127.0.0.1"));
     } else {
       group_options->devices.push_back(c10d::ProcessGroupGloo::createDefaultDevice());
@@ -230,25 +278,34 @@ DataParallelGroup::DataParallelGroup(const DistributedOptions& options) : state_
                                                           options.rank, options.world_size, group_options);
   } catch (const std::exception& e) {
     std::string absent;
-    int first_present = -1;
+    int present = 0;
+    bool looked = true;
     try {
       for (int r = 0; r < options.world_size; ++r) {
         if (!s.store->check({joined_key(r)})) {
           absent += (absent.empty() ? "" : ", ") + std::to_string(r);
-        } else if (first_present < 0) {
-          first_present = r;
+        } else {
+          ++present;
         }
       }
     } catch (const std::exception&) {
       absent.clear();  // the store itself is gone: the ranks cannot be told
+      looked = false;
     }
-    // A file store of a run that failed to form would hold stale addresses: the first rank present
-    // removes it (after the others had their look), so that the next run starts afresh.
-    if (!tcp && first_present == options.rank) {
+    // The store of a run that failed to form is of no further use (the next rank 0 starts a new run). The
+    // last rank present to have had its look removes it: a look at a removed file store creates it anew.
+    // (What is left when a rank dies here, the next rank 0 removes.) Rank 0's marker goes with its State.
+    if (!tcp && looked) {
+      bool last = false;
+      try {
+        last = s.store->add("amt/looked", 1) >= present;
+      } catch (const std::exception&) {
+      }
+      const std::string store_path = s.file_rendezvous->store_path();
       s.group.reset();
       s.store.reset();
       std::error_code ignored;
-      std::filesystem::remove(s.rendezvous.path, ignored);
+      if (last) std::filesystem::remove(store_path, ignored);
     }
     fail(s.where(), ": ", absent.empty() ? std::string("the ranks") : "rank(s) " + absent, " did not join within ",
          seconds_text(options.timeout_seconds), " (--dist-timeout; start every rank with the same --world-size ",

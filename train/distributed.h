@@ -1,7 +1,9 @@
 #pragma once
 // Data-parallel training across processes (issue 15) on PyTorch's distributed package as Debian's
-// LibTorch ships it: the ranks meet at a rendezvous (c10d::TCPStore or c10d::FileStore), form a
-// c10d::ProcessGroupGloo, start from rank 0's parameters and average their gradients every step.
+// LibTorch ships it: the ranks meet at a rendezvous (amt's own store for tcp://, which listens on the
+// named address only and wants the run's token, or a c10d::FileStore behind amt's marker for file://;
+// train/rendezvous_store.h), form a c10d::ProcessGroupGloo, start from rank 0's parameters and average
+// their gradients every step.
 // This header stays free of c10d and Gloo (train/distributed.cpp holds them) so that the trainer
 // and the command line compile without them.
 #include <ATen/core/Tensor.h>
@@ -22,14 +24,19 @@ struct DistributedOptions {
   /// its own, without a process group.
   int world_size = 1;
   int rank = 0;
-  /// "tcp://HOST:PORT" (rank 0 listens on PORT; HOST is rank 0's address as the others reach it) or
-  /// "file://PATH" (a file on a file system every rank sees, absent before the run; the ranks remove
-  /// it when they leave). Empty for world_size 1.
+  /// "tcp://HOST:PORT" (rank 0 listens on PORT of HOST's address only; HOST is rank 0's address as the
+  /// others reach it) or "file://PATH" (on a file system every rank sees: nothing there, or the marker of an
+  /// earlier amt run, which rank 0 replaces; the run's store is PATH.run-<id> beside it; both are removed
+  /// when the run ends). Empty for world_size 1.
   std::string rendezvous;
   /// Seconds a rank waits for all ranks to join, and for the others in any one exchange (gradients,
   /// parameters), before it stops with an error. Validation and checkpoints of rank 0 happen while
   /// the others wait, so they must fit in it.
   double timeout_seconds = 300.0;
+  /// The shared token every rank presents to a tcp:// rendezvous (--dist-token or AMT_DIST_TOKEN). Empty:
+  /// allowed on a loopback address only, where rank 0 generates one for the local ranks
+  /// (train/rendezvous_store.h, local_token_path).
+  std::string token;
 };
 
 /// A parsed rendezvous URL.
@@ -52,7 +59,8 @@ Rendezvous parse_rendezvous(const std::string& url);
 /// MASTER_PORT (the rendezvous tcp://MASTER_ADDR:MASTER_PORT); the command line wins. `getenv` looks a
 /// variable up (nullptr when unset). Throws amt::Error naming the option or variable for a malformed or
 /// inconsistent value: world size < 1, a rank outside [0, world size), no rendezvous for world size > 1,
-/// a malformed rendezvous, a timeout <= 0.
+/// a malformed rendezvous, a timeout <= 0. The token comes from AMT_DIST_TOKEN when not given; a malformed
+/// one, or none for a tcp:// rendezvous on an address other than loopback, is refused.
 DistributedOptions resolve_distributed_options(DistributedOptions given,
                                                const std::function<const char*(const char*)>& getenv);
 
@@ -62,9 +70,11 @@ DistributedOptions resolve_distributed_options(DistributedOptions given,
 /// Every rank must make the same calls in the same order (they are collective).
 class DataParallelGroup {
  public:
-  /// Joins the run: connects to the rendezvous (rank 0 of a tcp:// rendezvous listens on its port), then
-  /// every rank to every other over Gloo's TCP transport. Throws amt::Error naming the rendezvous, the
-  /// ranks that did not join and --dist-timeout when the others are not all there within the timeout.
+  /// Joins the run: connects to the rendezvous (rank 0 of a tcp:// rendezvous listens on its port; rank 0
+  /// of a file:// one starts a new run there), then every rank to every other over Gloo's TCP transport.
+  /// Throws amt::Error naming the rendezvous, the ranks that did not join and --dist-timeout when the others
+  /// are not all there within the timeout, and naming the option when the rendezvous refuses this rank (a
+  /// wrong token, a file amt did not make).
   explicit DataParallelGroup(const DistributedOptions& options);
   ~DataParallelGroup();
   DataParallelGroup(const DataParallelGroup&) = delete;

@@ -2,7 +2,8 @@
 // variables, the ranks' shares of the samples, the gradient average and broadcast of a process group on
 // two threads, and `amt train` started as two local processes on the loopback interface: the same loss
 // curve and weights as one process with the whole batch, files written by rank 0 alone, an exact resume,
-// and a killed rank that stops the other with one clear line within the timeout.
+// a killed rank that stops the other with one clear line within the timeout, and a run killed whole that
+// resumes at the same rendezvous (tests/train/rendezvous_store_torch_test.cpp: the rendezvous itself).
 #include "train/distributed.h"
 
 #include <ATen/ATen.h>
@@ -55,7 +56,7 @@ std::function<const char*(const char*)> environment(std::map<std::string, std::s
 }
 
 // Command-line values: nothing given.
-DistributedOptions not_given() { return DistributedOptions{0, -1, "", 300.0}; }
+DistributedOptions not_given() { return DistributedOptions{0, -1, "", 300.0, ""}; }
 
 // === The rendezvous URL and the environment
 
@@ -79,12 +80,16 @@ TEST(Rendezvous, ParsesTcpAndFileAndRejectsAnythingElse) {
 }
 
 TEST(DistributedOptions, TorchrunsEnvironmentGivesTheRunAndTheCommandLineWins) {
-  const auto torchrun =
-      environment({{"WORLD_SIZE", "4"}, {"RANK", "3"}, {"MASTER_ADDR", "node7"}, {"MASTER_PORT", "29500"}});
+  const auto torchrun = environment({{"WORLD_SIZE", "4"},
+                                     {"RANK", "3"},
+                                     {"MASTER_ADDR", "node7"},
+                                     {"MASTER_PORT", "29500"},
+                                     {"AMT_DIST_TOKEN", "0123456789abcdef0123"}});
   const DistributedOptions from_env = resolve_distributed_options(not_given(), torchrun);
   EXPECT_EQ(from_env.world_size, 4);
   EXPECT_EQ(from_env.rank, 3);
   EXPECT_EQ(from_env.rendezvous, "tcp://node7:29500");
+  EXPECT_EQ(from_env.token, "0123456789abcdef0123");
   DistributedOptions given = not_given();
   given.rank = 1;
   given.rendezvous = "file:///shared/r";
@@ -100,7 +105,7 @@ TEST(DistributedOptions, TorchrunsEnvironmentGivesTheRunAndTheCommandLineWins) {
 
 TEST(DistributedOptions, BadValuesNameTheOptionOrVariable) {
   const auto options = [](int world, int rank, std::string rendezvous, double timeout = 300.0) {
-    return DistributedOptions{world, rank, std::move(rendezvous), timeout};
+    return DistributedOptions{world, rank, std::move(rendezvous), timeout, ""};
   };
   const std::vector<std::pair<std::string, std::string>> cases = {
       {error_of([&] { resolve_distributed_options(options(2, 2, "tcp://h:1"), environment({})); }),
@@ -165,7 +170,7 @@ void with_two_ranks(const std::string& name, const std::function<void(int, DataP
   for (int rank = 0; rank < 2; ++rank) {
     threads.emplace_back([&, rank] {
       try {
-        DataParallelGroup group(DistributedOptions{2, rank, rendezvous, 20.0});
+        DataParallelGroup group(DistributedOptions{2, rank, rendezvous, 20.0, ""});
         f(rank, group);
       } catch (const std::exception& e) {
         errors[rank] = e.what();
@@ -330,7 +335,16 @@ void run_two_ranks(const fs::path& dir, const std::string& name, const std::vect
 // tenth of one AdamW step at --lr 1e-3 (measured: 1e-5; the gradients are summed in another order, and
 // AdamW's division by sqrt(v) turns rounding noise in a near-zero gradient into up to a step either way);
 // only rank 0 writes; the run resumes exactly (also on one process taking the whole batch).
+// A home folder of the test's own for the children: rank 0 of a loopback tcp:// run keeps its generated
+// token in ~/.cache/amt.
+void use_test_home() {
+  const fs::path home = test_dir() / "home";
+  fs::create_directories(home);
+  setenv("HOME", home.c_str(), 1);
+}
+
 TEST(DataParallelTraining, TwoRanksFollowOneProcessWithTheWholeBatchAndOnlyRankZeroWrites) {
+  use_test_home();
   const fs::path dir = test_dir() / "equivalence";
   fs::create_directories(dir);
   const Child one = start_amt(dir, "one", train_args("one", 6, 4));
@@ -450,13 +464,54 @@ TEST(DataParallelTraining, ARankThatNeverJoinsIsNamedAfterTheTimeout) {
       << err;
   EXPECT_FALSE(fs::exists(dir / "rendezvous"));
   EXPECT_FALSE(fs::exists(dir / "out"));
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().rfind("rendezvous", 0), std::string::npos) << e.path() << " left";
+}
+
+// Every rank killed with kill -9, then the same commands with --resume, rank 1 first: rank 1 waits past the
+// stale marker the killed run left (it used to join the stale store and hang past --dist-timeout), rank 0
+// replaces it with a new run, and the run ends normally.
+TEST(DataParallelTraining, AfterEveryRankIsKilledTheResumedRunReplacesTheStaleStore) {
+  const fs::path dir = test_dir() / "killed";
+  fs::create_directories(dir);
+  const std::string rendezvous = "file://" + (dir / "rendezvous").string();
+  const auto rank = [&](int r, int steps) {
+    return with(train_args("out", steps, 1), {"--world-size", "2", "--rank", std::to_string(r), "--rendezvous",
+                                              rendezvous, "--dist-timeout", "60"});
+  };
+  const Child rank0 = start_amt(dir, "rank0", rank(0, 100000)), rank1 = start_amt(dir, "rank1", rank(1, 100000));
+  const fs::path checkpoint = dir / "out" / "apparel.ckpt";
+  for (int i = 0; i < 2400 && !fs::exists(checkpoint); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(fs::exists(checkpoint)) << text_of(dir / "rank0.err") << text_of(dir / "rank1.err");
+  kill(rank0.pid, SIGKILL);
+  kill(rank1.pid, SIGKILL);
+  EXPECT_EQ(finish(rank0), -1);
+  EXPECT_EQ(finish(rank1), -1);
+  // The killed run's marker and store are still there.
+  ASSERT_TRUE(fs::exists(dir / "rendezvous"));
+  const int step = static_cast<int>(read_checkpoint_info(checkpoint.string(), ModuleKind::kApparel).step);
+  const auto resumed = [&](int r) { return with(rank(r, step + 2), {"--resume", "out/apparel.ckpt"}); };
+  const Child again1 = start_amt(dir, "again1", resumed(1));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const Child again0 = start_amt(dir, "again0", resumed(0));
+  EXPECT_EQ(finish(again1), 0) << text_of(dir / "again1.err");
+  EXPECT_EQ(finish(again0), 0) << text_of(dir / "again0.err");
+  EXPECT_NE(text_of(dir / "again0.out").find("steps " + std::to_string(step) + " -> " + std::to_string(step + 2)),
+            std::string::npos)
+      << text_of(dir / "again0.out");
+  // Neither the stale files nor the new run's are left.
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().rfind("rendezvous", 0), std::string::npos) << e.path() << " left";
 }
 
 // Bad options fail before anything is written, with one line naming the option, and status 1 or 2.
 TEST(DataParallelTraining, BadOptionsGiveOneLineAndWriteNothing) {
+  use_test_home();
   const fs::path dir = test_dir() / "bad";
   fs::create_directories(dir);
   const std::string port = std::to_string(free_port());
+  const std::string notes = "my notes\n";
+  { std::ofstream(dir / "notes.txt") << notes; }
   struct Case {
     std::vector<std::string> args;
     std::string expected;
@@ -482,6 +537,22 @@ TEST(DataParallelTraining, BadOptionsGiveOneLineAndWriteNothing) {
            ", rank 1 of 2: cannot reach the rendezvous within 1 s (--rendezvous, --dist-timeout)",
        1},
       {{"--world-size", "0"}, "--world-size", 2},
+      // A user's file is no rendezvous: refused at once, and left as it was.
+      {{"--world-size", "2", "--rank", "1", "--rendezvous", "file://notes.txt"},
+       "amt: error: data-parallel run file://notes.txt, rank 1 of 2: --rendezvous: notes.txt is a file amt did not "
+       "write, not a rendezvous amt made",
+       1},
+      {{"--world-size", "2", "--rank", "0", "--rendezvous", "file://notes.txt"},
+       "amt: error: data-parallel run file://notes.txt, rank 0 of 2: --rendezvous: notes.txt is a file amt did not "
+       "write, not a rendezvous amt made",
+       1},
+      // Any address but loopback wants the shared token.
+      {{"--world-size", "2", "--rank", "0", "--rendezvous", "tcp://192.0.2.7:" + port},
+       "amt: error: --dist-token: the rendezvous tcp://192.0.2.7:" + port +
+           " is not on a loopback address, so every rank must present a shared token",
+       1},
+      {{"--world-size", "2", "--rank", "0", "--rendezvous", "tcp://127.0.0.1:" + port, "--dist-token", "secret"},
+       "amt: error: --dist-token: expected a shared token of 16 to 256 printable characters without spaces", 1},
   };
   for (const Case& c : cases) {
     const test::CommandResult r = test::run_command("cd '" + dir.string() + "' && " +
@@ -493,6 +564,7 @@ TEST(DataParallelTraining, BadOptionsGiveOneLineAndWriteNothing) {
         << r.err;
   }
   EXPECT_FALSE(fs::exists(dir / "out"));
+  EXPECT_EQ(text_of(dir / "notes.txt"), notes);
 }
 
 }  // namespace
