@@ -267,7 +267,9 @@ void check_token(const std::string& token, const std::string& source) {
             token.size(), " characters", printable ? "" : " with spaces or control characters");
 }
 
-std::string generate_token() { return random_hex(32); }
+std::string generate_token() {
+  return random_hex(32);
+}
 
 std::string local_token_path(const std::string& host, int port) {
   std::string home;
@@ -360,7 +362,8 @@ struct RendezvousStore::Server {
   std::vector<std::unique_ptr<Connection>> connections;
   std::thread thread;
 
-  explicit Server(const Options& o) : token(o.token), max_connections(static_cast<size_t>(std::max(2, o.max_connections))) {
+  explicit Server(const Options& o)
+      : token(o.token), max_connections(static_cast<size_t>(std::max(2, o.max_connections))) {
     Addresses addresses(o.host, o.port);
     AMT_CHECK(addresses.list, addresses.error);
     std::string error = "no address";
@@ -546,8 +549,9 @@ struct RendezvousStore::Server {
         return;
       }
       if (!same_token(r.str(), token)) {
-        refuse(c, "the rendezvous refused this rank's token: every rank must present the same --dist-token or "
-                  "AMT_DIST_TOKEN");
+        refuse(c,
+               "the rendezvous refused this rank's token: every rank must present the same --dist-token or "
+               "AMT_DIST_TOKEN");
         return;
       }
       c.authenticated = true;
@@ -787,7 +791,9 @@ RendezvousStore::~RendezvousStore() {
   server_.reset();
 }
 
-int RendezvousStore::port() const { return client_->port; }
+int RendezvousStore::port() const {
+  return client_->port;
+}
 
 namespace {
 // The keys' names for messages: "key 'a'" or "keys 'a', 'b'".
@@ -879,7 +885,9 @@ int64_t RendezvousStore::getNumKeys() {
   }
 }
 
-void RendezvousStore::wait(const std::vector<std::string>& keys) { wait(keys, timeout_); }
+void RendezvousStore::wait(const std::vector<std::string>& keys) {
+  wait(keys, timeout_);
+}
 
 void RendezvousStore::wait(const std::vector<std::string>& keys, const milliseconds& timeout) {
   const milliseconds bound = timeout.count() > 0 ? timeout : timeout_;
@@ -892,7 +900,9 @@ void RendezvousStore::wait(const std::vector<std::string>& keys, const milliseco
 
 // === File rendezvous
 
-const char* FileRendezvous::header() { return "amt data-parallel rendezvous 1"; }
+const char* FileRendezvous::header() {
+  return "amt data-parallel rendezvous 1";
+}
 
 namespace {
 
@@ -983,12 +993,13 @@ FileRendezvous::FileRendezvous(const std::string& path, bool first, milliseconds
           return;
         }
         state = run_id.empty() ? "it is being written"
-                               : "it names the run " + run_id + " of an earlier run whose rank 0 is gone (the next "
-                                                                 "rank 0 replaces it)";
+                               : "it names the run " + run_id +
+                                     " of an earlier run whose rank 0 is gone (the next "
+                                     "rank 0 replaces it)";
       }
       if (Clock::now() >= deadline) {
-        fail("--rendezvous: no run started at ", path, " within ", seconds_text(timeout), " (--dist-timeout): ",
-             state, "; start rank 0 with the same --rendezvous");
+        fail("--rendezvous: no run started at ", path, " within ", seconds_text(timeout), " (--dist-timeout): ", state,
+             "; start rank 0 with the same --rendezvous");
       }
       std::this_thread::sleep_for(std::min<Clock::duration>(milliseconds(50), deadline - Clock::now()));
     }
@@ -1050,7 +1061,8 @@ FileRendezvous::FileRendezvous(const std::string& path, bool first, milliseconds
 FileRendezvous::~FileRendezvous() {
   if (fd_ < 0) return;
   // Removed only while the path is still this run's marker.
-  struct stat mine {}, there {};
+  struct stat mine {
+  }, there{};
   if (::fstat(fd_, &mine) == 0 && ::lstat(path_.c_str(), &there) == 0 && mine.st_dev == there.st_dev &&
       mine.st_ino == there.st_ino) {
     ::unlink(path_.c_str());

@@ -94,7 +94,9 @@ bool connects(const std::string& address, int port) {
   return ok;
 }
 
-std::vector<uint8_t> bytes(const std::string& text) { return std::vector<uint8_t>(text.begin(), text.end()); }
+std::vector<uint8_t> bytes(const std::string& text) {
+  return std::vector<uint8_t>(text.begin(), text.end());
+}
 
 // A frame as amt's rendezvous reads it: 4 bytes of length (big-endian), then the payload.
 std::string frame(const std::string& payload) {
@@ -176,7 +178,9 @@ TEST(RendezvousStore, AWaitOnAMissingKeyEndsAtTheTimeoutWithAnError) {
   EXPECT_EQ(message, "rendezvous 127.0.0.1:" + std::to_string(store.port()) + ": key 'missing': not set within 1 s");
   EXPECT_GE(seconds, 0.9);
   EXPECT_LT(seconds, 30.0);  // generous: the machine is loaded
-  EXPECT_EQ(error_of([&] { store.wait({"a", "b"}, milliseconds(300)); }),
+  EXPECT_EQ(error_of([&] {
+              store.wait({"a", "b"}, milliseconds(300));
+            }),
             "rendezvous 127.0.0.1:" + std::to_string(store.port()) + ": keys 'a', 'b': not set within 0.3 s");
   // c10d's "no timeout" waits for the store's timeout, not forever.
   EXPECT_NE(error_of([&] { store.wait({"a"}, milliseconds(0)); }).find("not set within 1 s"), std::string::npos);
@@ -188,7 +192,8 @@ TEST(RendezvousStore, AWaitOnAMissingKeyEndsAtTheTimeoutWithAnError) {
 TEST(RendezvousStore, AClientWithoutAServerStopsAtTheTimeout) {
   const auto start = Clock::now();
   // Nobody listens on port 1.
-  const std::string message = error_of([&] { RendezvousStore lost(store_options(1, false, kToken, milliseconds(500))); });
+  const std::string message =
+      error_of([&] { RendezvousStore lost(store_options(1, false, kToken, milliseconds(500))); });
   EXPECT_EQ(message.rfind("rendezvous 127.0.0.1:1: not reached within 0.5 s (", 0), 0u) << message;
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - start).count(), 30.0);
 }
@@ -231,7 +236,9 @@ TEST(RendezvousTokens, ANonLoopbackRendezvousNeedsAToken) {
     return std::string(name) == "AMT_DIST_TOKEN" ? "abcdefghijklmnopqrstuvwxyz" : nullptr;
   };
   const auto none = [](const char*) -> const char* { return nullptr; };
-  EXPECT_EQ(error_of([&] { resolve_distributed_options(DistributedOptions{2, 0, "tcp://10.0.0.7:29500", 300.0, ""}, none); }),
+  EXPECT_EQ(error_of([&] {
+              resolve_distributed_options(DistributedOptions{2, 0, "tcp://10.0.0.7:29500", 300.0, ""}, none);
+            }),
             "--dist-token: the rendezvous tcp://10.0.0.7:29500 is not on a loopback address, so every rank must "
             "present a shared token: give each rank the same --dist-token or AMT_DIST_TOKEN (16 to 256 characters, "
             "e.g. from `openssl rand -hex 32`)");
@@ -298,9 +305,12 @@ TEST(DataParallelRendezvous, AFileRendezvousOntoAUsersFileIsRefusedAndTheFileUnc
   const std::string rendezvous = "file://" + notes.string();
   for (int rank : {0, 1}) {
     const auto start = Clock::now();
-    const std::string message = error_of([&] { DataParallelGroup group(DistributedOptions{2, rank, rendezvous, 30.0, ""}); });
-    EXPECT_EQ(message, "data-parallel run " + rendezvous + ", rank " + std::to_string(rank) + " of 2: --rendezvous: " +
-                           notes.string() + " is a file amt did not write, not a rendezvous amt made (its first line "
+    const std::string message = error_of([&] {
+      DataParallelGroup group(DistributedOptions{2, rank, rendezvous, 30.0, ""});
+    });
+    EXPECT_EQ(message, "data-parallel run " + rendezvous + ", rank " + std::to_string(rank) +
+                           " of 2: --rendezvous: " + notes.string() +
+                           " is a file amt did not write, not a rendezvous amt made (its first line "
                            "would be 'amt data-parallel rendezvous 1'); amt leaves it as it is: give a path that does "
                            "not exist");
     // At once, not after the timeout.
@@ -348,8 +358,9 @@ TEST(DataParallelRendezvous, ARankFacingOnlyAStaleMarkerStopsAtTheTimeoutNamingI
   const std::string stale = "00112233445566778899aabbccddeeff";
   leave_stale_run(path, stale);
   const auto start = Clock::now();
-  const std::string message =
-      error_of([&] { DataParallelGroup group(DistributedOptions{2, 1, "file://" + path.string(), 1.0, ""}); });
+  const std::string message = error_of([&] {
+    DataParallelGroup group(DistributedOptions{2, 1, "file://" + path.string(), 1.0, ""});
+  });
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   EXPECT_EQ(message, "data-parallel run file://" + path.string() + ", rank 1 of 2: --rendezvous: no run started at " +
                          path.string() + " within 1 s (--dist-timeout): it names the run " + stale +
