@@ -23,7 +23,8 @@ void add_animate_command(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   auto* cmd = app.add_subcommand("animate", "Animate a character with a motion: apparel dynamics on the CPU");
   cmd->add_option("--character", o->character.spec,
-                  "Character: .glb/.gltf (rigged), .vrm (VRM 0.x / 1.0 avatar: its humanoid map and spring bones are used), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
+                  "Character: .glb/.gltf (rigged), .vrm (VRM 0.x / 1.0 avatar: its humanoid map and spring bones are "
+                  "used), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
                   "generated:SEED[:VERTICES]")
       ->required();
   cmd->add_option("--motion", o->motion.spec, "Motion: .bvh, .glb/.gltf animation, or data.h5:clip")->required();
@@ -60,14 +61,17 @@ void add_animate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--apparel", o->apparel,
                   "What moves the apparel: learned (the apparel module, default) or physics (a PMX model's own rigid "
-                  "bodies and joints, simulated under the motion as its artist tuned them, baked into the output)")
-      ->check(CLI::IsMember({"learned", "physics"}))
+                  "bodies and joints, simulated under the motion as its artist tuned them, baked into the output), or "
+                  "spring-bones (a VRM avatar's own spring bones, simulated as the VRM specification defines at 120 "
+                  "steps per second whatever the frame rate)")
+      ->check(CLI::IsMember({"learned", "physics", "spring-bones"}))
       ->capture_default_str();
   cmd->add_option("--fps", *fps, "Output frame rate (default: 30 for BVH/glTF motions, a dataset clip's own rate)")
       ->check(CLI::Range(0.001, 1000.0));
   cmd->add_option("--frames", o->playback.frames, "At most this many frames (0: all)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--lead-in", o->playback.lead_in,
-                  "Frames blending from the rest pose into the first frame (not written)")
+                  "Frames blending from the rest pose into the first frame (not written; with --apparel "
+                  "spring-bones they count at 30 fps, so that the lead-in lasts as long at every frame rate)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   cmd->add_flag("--refiner", o->refine,
@@ -94,7 +98,7 @@ void add_animate_command(CLI::App& app) {
                 "--html: expected the repository's viewer/ folder above the amt program "
                 "or in the current folder, found none: run amt from a checkout");
     }
-    if (model->count() == 0 && options.apparel != "physics")
+    if (model->count() == 0 && options.apparel != "physics" && options.apparel != "spring-bones")
       options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
     if (*fps > 0) options.playback.fps = float(*fps);
     if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;

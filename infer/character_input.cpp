@@ -1,26 +1,26 @@
 #include "infer/character_input.h"
 
 #include <algorithm>
-#include <set>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/body_generator.h"
-#include "data_tools/formats/dataset_file.h"
-#include "data_tools/geometry/error.h"
-#include "data_tools/geometry/lbs.h"
-#include "data_tools/formats/input_file.h"
-#include "data_tools/formats/gltf_import.h"
-#include "data_tools/formats/obj_io.h"
-#include "data_tools/formats/pmx_import.h"
 #include "data_tools/builder/pmx_dataset.h"
 #include "data_tools/builder/pmx_physics.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/input_file.h"
+#include "data_tools/formats/obj_io.h"
+#include "data_tools/formats/pmx_import.h"
+#include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs.h"
 
 namespace amt {
 
@@ -50,7 +50,8 @@ namespace {
 // True for the name of a body part a rig often has beside the canonical joints (fingers, toes, eyes,
 // jaw, tongue, twist and roll bones), compared in lower case: such chains are not apparel.
 bool body_part_name(std::string name) {
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  std::transform(name.begin(), name.end(), name.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
   for (const char* part : {"finger", "thumb", "index", "middle", "ring", "pinky", "little", "toe", "eye", "jaw",
                            "tongue", "teeth", "twist", "roll"}) {
     if (name.find(part) != std::string::npos) return true;
@@ -106,8 +107,9 @@ std::shared_ptr<const ApparelBones> file_apparel_bones(const std::vector<std::st
 
 RuntimeCharacter load_character(const CharacterSpec& spec) {
   RuntimeCharacter c;
-  SparseWeights gltf_weights;  // a skinned glTF's own weights, for its rig's apparel
-  std::vector<uint8_t> springs;  // a VRM avatar's spring-bone joints
+  SparseWeights gltf_weights;             // a skinned glTF's own weights, for its rig's apparel
+  std::vector<uint8_t> springs;           // a VRM avatar's spring-bone joints
+  std::shared_ptr<SpringRig> spring_rig;  // and their simulation parameters
   std::optional<JointMapFile> user_map;
   if (!spec.joint_map.empty()) user_map = read_joint_map(spec.joint_map);
   const std::string& path = spec.spec;
@@ -169,6 +171,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
           }
           user_map = std::move(vrm);
           springs = gltf_vrm_spring_joints(asset, g);
+          SpringRig rig = gltf_vrm_spring_rig(asset, g);
+          if (rig.num_joints() > 0) spring_rig = std::make_shared<SpringRig>(std::move(rig));
           c.file_kind = "VRM " + gltf_vrm_version(asset) + (gltf_vrm_version(asset) == "0" ? ".x" : ".0");
         }
         c.mesh = std::move(g.mesh);
@@ -219,8 +223,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
                 ": joints: the character has no skeleton (no bones): expected --character-joints FILE");
       has_skeleton = !model.bones.empty();
     } else {
-      fail(path, ": character: expected a .glb, .gltf, .vrm, .obj, .pmx file or file.h5:character, found extension '", e,
-           "'");
+      fail(path, ": character: expected a .glb, .gltf, .vrm, .obj, .pmx file or file.h5:character, found extension '",
+           e, "'");
     }
     if (!spec.joints.empty()) {
       c.file_skeleton = read_joints_json(spec.joints);
@@ -241,24 +245,28 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     }
     c.rest = canonical_rest(c.file_skeleton, user_map, path);
     c.turned = true;
+    if (spring_rig) turn_spring_rig(*spring_rig);
+  }
+  if (spring_rig && gltf_weights.num_vertices() == c.mesh.num_vertices()) {
+    c.springs = std::move(spring_rig);
+    c.file_weights = gltf_weights;
   }
   c.skeleton = c.rest.skeleton;
   if (gltf_weights.num_vertices() == c.mesh.num_vertices()) {
     int chain_bones = 0;
     std::vector<uint8_t> chain;
-    std::vector<uint8_t> rig =
-        chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, springs, &chain_bones, &chain);
+    std::vector<uint8_t> rig = chain_apparel_mask(c.file_skeleton, c.rest, gltf_weights, springs, &chain_bones, &chain);
     const auto count = std::count(rig.begin(), rig.end(), uint8_t(1));
     if (count > 0) {
       MatrixX3f heads(c.file_skeleton.num_joints(), 3);
       for (int j = 0; j < c.file_skeleton.num_joints(); ++j) heads.row(j) = c.file_skeleton.rest_joints.row(j);
       c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain);
       c.rig_apparel_mask = std::move(rig);
-      c.rig_apparel = springs.empty() ? "glTF chains: " + std::to_string(count) + " vertices on " +
-                                            std::to_string(chain_bones) +
-                                            " bones outside the canonical map that hang in chains from it"
-                                      : "VRM spring bones: " + std::to_string(count) + " vertices on " +
-                                            std::to_string(chain_bones) + " bones that its springs move";
+      c.rig_apparel = springs.empty()
+                          ? "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +
+                                " bones outside the canonical map that hang in chains from it"
+                          : "VRM spring bones: " + std::to_string(count) + " vertices on " +
+                                std::to_string(chain_bones) + " bones that its springs move";
     }
   }
   return c;

@@ -12,8 +12,10 @@
 #include "data_tools/formats/canonical_rest.h"
 #include "data_tools/formats/joint_map.h"
 #include "data_tools/geometry/apparel_topology.h"
+#include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/skeleton.h"
+#include "data_tools/geometry/spring_bones.h"
 
 namespace amt {
 
@@ -66,6 +68,10 @@ struct RuntimeCharacter {
   /// True when the file's character faced -Z (its left hip on -X, as VRM 0.x avatars stand) and was turned half
   /// a turn about Y to face +Z as amt's motions do; mesh and skeletons are the turned ones.
   bool turned = false;
+  /// A VRM avatar's spring bones on file_skeleton (`--apparel spring-bones`) and the file's own skin weights over
+  /// file_skeleton that they move vertices with; null / empty for other characters.
+  std::shared_ptr<const SpringRig> springs;
+  SparseWeights file_weights;
 };
 
 /// Splits "file.h5:name" into ("file.h5", "name") when the part before the last ':' ends in .h5 or

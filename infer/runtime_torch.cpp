@@ -281,15 +281,16 @@ void check_outputs_are_not_inputs(const AnimateOptions& o) {
                                   {o.motion.joint_map, "--motion-joint-map"}};
   if (o.apparel_mask != "auto" && o.apparel_mask != "model" && o.apparel_mask != "rig")
     inputs.push_back({o.apparel_mask, "--apparel-mask"});
-  if (o.apparel != "physics" && !o.model_dir.empty()) {
+  if (o.apparel != "physics" && o.apparel != "spring-bones" && !o.model_dir.empty()) {
     for (const char* name : {"segmenter.ckpt", "skinning.ckpt", "apparel.ckpt", "refiner.ckpt"})
       inputs.push_back({(std::filesystem::path(o.model_dir) / name).string(), "--model"});
   }
-  const std::string bind = o.bind_path == "none" ? ""
+  const std::string bind = o.bind_path == "none"  ? ""
                            : !o.bind_path.empty() ? o.bind_path
                            : o.out.empty()        ? ""
                                                   : default_bind_path(o.out);
-  std::vector<std::pair<std::string, std::string>> outputs = {{o.out, "--out"}, {bind, "--bind"}, {o.picture, "--picture"}};
+  std::vector<std::pair<std::string, std::string>> outputs = {
+      {o.out, "--out"}, {bind, "--bind"}, {o.picture, "--picture"}};
   for (size_t k = 0; k < outputs.size(); ++k) {
     check_output_not_input(outputs[k].first, outputs[k].second, inputs);
     for (size_t m = k + 1; m < outputs.size(); ++m) {
@@ -301,6 +302,37 @@ void check_outputs_are_not_inputs(const AnimateOptions& o) {
                 outputs[k].second, " output: choose another name");
     }
   }
+}
+
+// Streams the frames of a simulated apparel path (--apparel physics, spring-bones) to `writer`: `simulate(t, T, V)`
+// writes frame t's vertices under its canonical transforms T; every frame is checked before it is written, as on the
+// learned path, so that a simulation that threw a body away stops the run instead of reaching the output. Fills the
+// summary's times and output.
+template <typename Simulate>
+void stream_simulated_frames(const AnimateOptions& o, const RuntimeCharacter& character, const MotionPlayer& player,
+                             const Transforms& first, const OutputInfo& info, FrameWriter& writer, const char* stage,
+                             Clock::time_point job_start, AnimateSummary& s, Simulate&& simulate) {
+  FrameLoop loop(o, character.mesh, s.frames);
+  MatrixX3f V;
+  const Eigen::Vector3f extent = character.mesh.V.colwise().maxCoeff() - character.mesh.V.colwise().minCoeff();
+  const float bound = 10.0f * std::max(extent.norm(), 0.1f);
+  const Eigen::Vector3f root_rest = character.skeleton.rest_joints.row(0).transpose();
+  for (int t = 0; t < s.frames; ++t) {
+    const auto frame_start = Clock::now();
+    const Transforms T = t == 0 ? first : player.frame(t);
+    simulate(t, T, V);
+    check_frame_output(V, apply(T.at(0), root_rest), bound, t, stage);
+    s.mean.model += seconds_since(frame_start);
+    const auto out_start = Clock::now();
+    writer.append(V, T);
+    s.mean.output += seconds_since(out_start);
+    loop.done(t, V, info.apparel_mask, seconds_since(frame_start));
+  }
+  s.output = writer.finish();
+  loop.finish(s);
+  const double n = std::max(1, s.frames);
+  s.mean.model /= n, s.mean.output /= n;
+  s.total_seconds = seconds_since(job_start);
 }
 
 // `amt animate --apparel physics`: the PMX model's own physics under the motion, skinned by its own rig, streamed
@@ -357,38 +389,114 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   s.lead_in = std::max(0, o.playback.lead_in);
   physics.start(first, s.lead_in);
 
-  FrameLoop loop(o, character.mesh, s.frames);
-  MatrixX3f V;
-  // Every frame is checked before it is written, as on the learned path: a rigid body the simulation threw away
-  // stops the run instead of reaching the output.
-  const Eigen::Vector3f extent = character.mesh.V.colwise().maxCoeff() - character.mesh.V.colwise().minCoeff();
-  const float bound = 10.0f * std::max(extent.norm(), 0.1f);
-  const Eigen::Vector3f root_rest = character.skeleton.rest_joints.row(0).transpose();
-  for (int t = 0; t < s.frames; ++t) {
-    const auto frame_start = Clock::now();
-    const Transforms T = t == 0 ? first : player.frame(t);
-    physics.step(T, V);
-    check_frame_output(V, apply(T.at(0), root_rest), bound, t, "PMX physics");
-    s.mean.model += seconds_since(frame_start);
-    const auto out_start = Clock::now();
-    writer->append(V, T);
-    s.mean.output += seconds_since(out_start);
-    loop.done(t, V, info.apparel_mask, seconds_since(frame_start));
+  stream_simulated_frames(o, character, player, first, info, *writer, "PMX physics", job_start, s,
+                          [&](int, const Transforms& T, MatrixX3f& V) { physics.step(T, V); });
+  return s;
+}
+
+// Per joint of the character's file skeleton, its skinning transform under canonical transforms T: the transform of
+// the canonical joint that carries it (the file's rest poses have no rotations, so a carried joint moves rigidly
+// with its carrier).
+Transforms file_pose(const RuntimeCharacter& character, const Transforms& T) {
+  Transforms P(character.rest.carrier.size());
+  for (size_t b = 0; b < P.size(); ++b) P[b] = T.at(static_cast<size_t>(character.rest.carrier[b]));
+  return P;
+}
+
+// `amt animate --apparel spring-bones`: a VRM avatar's own spring bones under the motion, as the VRM specification
+// simulates them, at a fixed internal step (kSpringStepSeconds) whatever the output frame rate. No network, no bind.
+AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
+  const auto job_start = Clock::now();
+  AnimateSummary s;
+  s.physics = true;
+  AMT_CHECK(o.html_dir.empty(),
+            "--html: expected no viewer folder with --apparel spring-bones (it shows the learned "
+            "prediction beside skinning); use --out FILE.glb");
+  AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
+  output_kind(o.out);
+  check_outputs_are_not_inputs(o);
+  const RuntimeCharacter character = load_character(o.character);
+  AMT_CHECK(
+      character.springs && character.springs->num_joints() > 0, o.character.spec,
+      ": --apparel spring-bones: expected a VRM avatar with spring bones (.vrm: VRMC_springBone or VRM 0.x "
+      "secondaryAnimation), found ",
+      character.file_kind.empty() ? std::string("a character without them") : character.file_kind + " without them",
+      "; use --apparel learned");
+  const SourceMotion source = load_motion(o.motion);
+  const MotionPlayer player(source, character, o.playback);
+  const SpringRig& rig = *character.springs;
+  s.apparel = "spring bones (the avatar's own " + std::to_string(rig.num_joints()) + " spring segments and " +
+              std::to_string(rig.colliders.size()) + " colliders, simulated at " +
+              std::to_string(int(std::lround(1.0 / kSpringStepSeconds))) + " steps per second)";
+  s.apparel_source = character.rig_apparel.empty() ? std::string("the spring bones") : character.rig_apparel;
+  if (o.verbose) {
+    print_inputs(character, source);
+    for (const std::string& note : rig.notes) std::cerr << "animate: spring bones: " << note << "\n";
+    std::cerr << "animate: apparel: " << s.apparel << "\n";
   }
-  s.output = writer->finish();
-  loop.finish(s);
-  const double n = std::max(1, s.frames);
-  s.mean.model /= n, s.mean.output /= n;
-  s.total_seconds = seconds_since(job_start);
+  s.load_seconds = seconds_since(job_start);
+  check_output_writable(o.out);
+  s.vertices = character.mesh.num_vertices();
+  s.apparel_vertices =
+      static_cast<int>(std::count(character.rig_apparel_mask.begin(), character.rig_apparel_mask.end(), uint8_t(1)));
+  s.frames = player.num_frames();
+  s.fps = player.fps();
+  s.exact_motion = player.exact();
+
+  OutputInfo info = output_info(character, source, s);
+  info.apparel_mask = character.rig_apparel_mask;
+  if (info.apparel_mask.size() != size_t(s.vertices)) info.apparel_mask.assign(size_t(s.vertices), 0);
+  {  // the file's weights summed onto the canonical joints that carry their joints
+    MatrixXfR W = MatrixXfR::Zero(s.vertices, kCanonicalJointCount);
+    const SparseWeights& fw = character.file_weights;
+    for (int i = 0; i < s.vertices; ++i) {
+      for (int k = 0; k < kMaxInfluences; ++k) {
+        const int b = fw.indices(i, k);
+        if (b >= 0 && fw.weights(i, k) > 0) W(i, character.rest.carrier[size_t(b)]) += fw.weights(i, k);
+      }
+    }
+    info.weights = std::move(W);
+  }
+  std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+
+  // Settle under gravity for a second at the rest pose, then blend into the first frame over the lead-in, as the
+  // PMX physics path does. The lead-in lasts lead_in / 30 seconds whatever the output frame rate (its frames
+  // count at 30 fps), so that the springs start the clip in the same state at every rate.
+  SpringBoneSimulator springs(character.file_skeleton, rig);
+  const double frame_seconds = 1.0 / double(s.fps);
+  const Transforms first = player.frame(0);
+  s.lead_in = std::max(0, o.playback.lead_in);
+  Transforms first_output;
+  if (s.lead_in > 0) {
+    const Transforms rest = file_pose(
+        character, Transforms(first.size(), make_transform(Eigen::Matrix3f::Identity(), Eigen::Vector3f::Zero())));
+    springs.reset(rest);
+    springs.advance(rest, 1.0);
+    const int n = std::max(1, int(std::lround(double(s.lead_in) * double(s.fps) / 30.0)));
+    for (int k = 1; k < n; ++k)  // blend weights k / n
+      springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), frame_seconds);
+    first_output = springs.advance(file_pose(character, first), frame_seconds);
+  } else {
+    springs.reset(file_pose(character, first));
+    first_output = springs.advance(file_pose(character, first), 1.0);
+  }
+
+  stream_simulated_frames(o, character, player, first, info, *writer, "spring bones", job_start, s,
+                          [&](int t, const Transforms& T, MatrixX3f& V) {
+                            const Transforms M =
+                                t == 0 ? first_output : springs.advance(file_pose(character, T), frame_seconds);
+                            linear_blend_skinning(character.mesh.V, character.file_weights, M, V);
+                          });
   return s;
 }
 
 }  // namespace
 
 AnimateSummary animate(const AnimateOptions& o) {
-  AMT_CHECK(o.apparel.empty() || o.apparel == "learned" || o.apparel == "physics",
-            "--apparel: expected learned or physics, found '", o.apparel, "'");
+  AMT_CHECK(o.apparel.empty() || o.apparel == "learned" || o.apparel == "physics" || o.apparel == "spring-bones",
+            "--apparel: expected learned, physics or spring-bones, found '", o.apparel, "'");
   if (o.apparel == "physics") return animate_with_physics(o);
+  if (o.apparel == "spring-bones") return animate_with_spring_bones(o);
   const auto job_start = Clock::now();
   AnimateSummary s;
   s.output = o.out;

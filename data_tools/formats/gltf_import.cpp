@@ -22,8 +22,8 @@
 #include <set>
 #include <unordered_set>
 
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt {
 
@@ -1701,7 +1701,9 @@ const tinygltf::Value* top_extension(const tinygltf::Model& m, const char* name)
 // A node index held in `value` (field `field`), checked against the file's nodes.
 int vrm_node(const tinygltf::Value& value, const tinygltf::Model& m, const std::string& src, const std::string& field) {
   AMT_CHECK(value.IsNumber(), src, ": ", field, ": expected a node index, found ",
-            value.IsString() ? "a string" : value.IsObject() ? "an object" : "another type");
+            value.IsString()   ? "a string"
+            : value.IsObject() ? "an object"
+                               : "another type");
   const double n = value.GetNumberAsDouble();
   AMT_CHECK(n >= 0 && n < double(m.nodes.size()) && n == std::floor(n), src, ": ", field,
             ": expected a node index in [0, ", m.nodes.size(), "), found ", n);
@@ -1730,17 +1732,25 @@ std::optional<JointMapFile> gltf_vrm_joint_map(const GltfAsset& asset, const Glt
   const tinygltf::Model& m = asset.impl().model;
   const std::string& src = asset.source();
   // VRM humanoid bone -> canonical joint; the spine, chest and upper chest come from the structure.
-  static const std::map<std::string, std::string> kCanonical = {
-      {"hips", "pelvis"},
-      {"leftUpperLeg", "left_hip"},        {"rightUpperLeg", "right_hip"},
-      {"leftLowerLeg", "left_knee"},       {"rightLowerLeg", "right_knee"},
-      {"leftFoot", "left_ankle"},          {"rightFoot", "right_ankle"},
-      {"leftToes", "left_foot"},           {"rightToes", "right_foot"},
-      {"neck", "neck"},                    {"head", "head"},
-      {"leftShoulder", "left_collar"},     {"rightShoulder", "right_collar"},
-      {"leftUpperArm", "left_shoulder"},   {"rightUpperArm", "right_shoulder"},
-      {"leftLowerArm", "left_elbow"},      {"rightLowerArm", "right_elbow"},
-      {"leftHand", "left_wrist"},          {"rightHand", "right_wrist"}};
+  static const std::map<std::string, std::string> kCanonical = {{"hips", "pelvis"},
+                                                                {"leftUpperLeg", "left_hip"},
+                                                                {"rightUpperLeg", "right_hip"},
+                                                                {"leftLowerLeg", "left_knee"},
+                                                                {"rightLowerLeg", "right_knee"},
+                                                                {"leftFoot", "left_ankle"},
+                                                                {"rightFoot", "right_ankle"},
+                                                                {"leftToes", "left_foot"},
+                                                                {"rightToes", "right_foot"},
+                                                                {"neck", "neck"},
+                                                                {"head", "head"},
+                                                                {"leftShoulder", "left_collar"},
+                                                                {"rightShoulder", "right_collar"},
+                                                                {"leftUpperArm", "left_shoulder"},
+                                                                {"rightUpperArm", "right_shoulder"},
+                                                                {"leftLowerArm", "left_elbow"},
+                                                                {"rightLowerArm", "right_elbow"},
+                                                                {"leftHand", "left_wrist"},
+                                                                {"rightHand", "right_wrist"}};
   std::vector<std::pair<std::string, int>> bones;  // (VRM bone, node)
   std::string base;
   if (const tinygltf::Value* vrm1 = top_extension(m, "VRMC_vrm")) {
@@ -1793,8 +1803,8 @@ std::vector<uint8_t> gltf_vrm_spring_joints(const GltfAsset& asset, const GltfCh
     for (size_t s = 0; springs.IsArray() && s < springs.ArrayLen(); ++s) {
       const tinygltf::Value& joints = springs.Get(int(s)).Get("joints");
       for (size_t k = 0; joints.IsArray() && k < joints.ArrayLen(); ++k) {
-        const std::string field = "extensions.VRMC_springBone.springs[" + std::to_string(s) + "].joints[" +
-                                  std::to_string(k) + "].node";
+        const std::string field =
+            "extensions.VRMC_springBone.springs[" + std::to_string(s) + "].joints[" + std::to_string(k) + "].node";
         roots.push_back(vrm_node(joints.Get(int(k)).Get("node"), m, src, field));
       }
     }
@@ -1824,6 +1834,242 @@ std::vector<uint8_t> gltf_vrm_spring_joints(const GltfAsset& asset, const GltfCh
     out[j] = n >= 0 && moved_node[size_t(n)];
   }
   return out;
+}
+
+// === VRM spring bones
+
+namespace {
+
+float number_or(const tinygltf::Value& object, const char* key, float fallback, const std::string& src,
+                const std::string& field) {
+  if (!object.IsObject() || !object.Has(key)) return fallback;
+  const tinygltf::Value& v = object.Get(key);
+  AMT_CHECK(v.IsNumber(), src, ": ", field, ".", key, ": expected a number, found another type");
+  const double x = v.GetNumberAsDouble();
+  AMT_CHECK(std::isfinite(x), src, ": ", field, ".", key, ": expected a finite number, found ", x);
+  return float(x);
+}
+
+// A vector given as [x, y, z] (VRM 1.0) or {x, y, z} (VRM 0.x).
+Eigen::Vector3f vector_or(const tinygltf::Value& object, const char* key, const Eigen::Vector3f& fallback,
+                          const std::string& src, const std::string& field) {
+  if (!object.IsObject() || !object.Has(key)) return fallback;
+  const tinygltf::Value& v = object.Get(key);
+  Eigen::Vector3f out = fallback;
+  if (v.IsArray()) {
+    AMT_CHECK(v.ArrayLen() == 3, src, ": ", field, ".", key, ": expected 3 numbers, found ", v.ArrayLen());
+    for (int i = 0; i < 3; ++i) {
+      AMT_CHECK(v.Get(i).IsNumber(), src, ": ", field, ".", key, "[", i, "]: expected a number");
+      out[i] = float(v.Get(i).GetNumberAsDouble());
+    }
+  } else {
+    AMT_CHECK(v.IsObject(), src, ": ", field, ".", key, ": expected [x, y, z] or {x, y, z}, found another type");
+    const char* axes[3] = {"x", "y", "z"};
+    for (int i = 0; i < 3; ++i) out[i] = number_or(v, axes[i], fallback[i], src, field + "." + key);
+  }
+  AMT_CHECK(out.allFinite(), src, ": ", field, ".", key, ": expected finite numbers");
+  return out;
+}
+
+Eigen::Vector3f rest_point(const GltfAsset::Impl& a, int node, const Eigen::Vector3f& local = Eigen::Vector3f::Zero()) {
+  const Eigen::Vector4d p = a.rest_world[size_t(node)] * Eigen::Vector4d(local.x(), local.y(), local.z(), 1.0);
+  return p.head<3>().cast<float>();
+}
+
+}  // namespace
+
+SpringRig gltf_vrm_spring_rig(const GltfAsset& asset, const GltfCharacter& character) {
+  const GltfAsset::Impl& a = asset.impl();
+  const tinygltf::Model& m = a.model;
+  const std::string& src = asset.source();
+  const std::map<int, int> joints = joint_of_node(character);
+  SpringRig rig;
+  // The joint that carries a node: its own, else its nearest ancestor's (-1 when none is a joint).
+  const auto carrier = [&](int node) {
+    for (int n = node; n >= 0; n = a.parent[size_t(n)]) {
+      const auto it = joints.find(n);
+      if (it != joints.end()) return it->second;
+    }
+    return -1;
+  };
+  std::vector<uint8_t> taken(character.joint_nodes.size(), 0);
+  int unskinned = 0, repeated = 0;
+  const auto add = [&](int node, const Eigen::Vector3f& tail, SpringJoint joint) {
+    const auto it = joints.find(node);
+    if (it == joints.end()) return void(++unskinned);
+    if (taken[size_t(it->second)]) return void(++repeated);
+    taken[size_t(it->second)] = 1;
+    joint.joint = it->second;
+    joint.tail = tail;
+    if (joint.gravity_dir.norm() > 0.0f) joint.gravity_dir.normalize();
+    const Eigen::Vector3f head = character.skeleton.rest_joints.row(joint.joint).transpose();
+    if ((tail - head).norm() > 1e-6f) rig.joints.push_back(joint);
+  };
+  int centres = 0;
+  if (const tinygltf::Value* ext = top_extension(m, "VRMC_springBone")) {
+    const std::string base = "extensions.VRMC_springBone";
+    const tinygltf::Value& colliders = ext->Get("colliders");
+    std::vector<int> collider_index;  // per file collider, its index in rig.colliders or -1
+    for (size_t c = 0; colliders.IsArray() && c < colliders.ArrayLen(); ++c) {
+      const std::string field = base + ".colliders[" + std::to_string(c) + "]";
+      const tinygltf::Value& col = colliders.Get(int(c));
+      const int node = vrm_node(col.Get("node"), m, src, field + ".node");
+      const tinygltf::Value& shape = col.Get("shape");
+      SpringCollider k;
+      k.joint = carrier(node);
+      const bool sphere = shape.Has("sphere"), capsule = shape.Has("capsule");
+      if (k.joint < 0 || (!sphere && !capsule)) {
+        collider_index.push_back(-1);
+        continue;
+      }
+      const tinygltf::Value& s = shape.Get(sphere ? "sphere" : "capsule");
+      const std::string f = field + ".shape." + (sphere ? "sphere" : "capsule");
+      k.center = rest_point(a, node, vector_or(s, "offset", Eigen::Vector3f::Zero(), src, f));
+      k.radius = number_or(s, "radius", 0.0f, src, f);
+      k.capsule = capsule && !sphere;
+      k.tail = k.capsule ? rest_point(a, node, vector_or(s, "tail", Eigen::Vector3f::Zero(), src, f)) : k.center;
+      AMT_CHECK(k.radius >= 0.0f && k.radius < 100.0f, src, ": ", f, ".radius: expected [0, 100) metres, found ",
+                k.radius);
+      collider_index.push_back(int(rig.colliders.size()));
+      rig.colliders.push_back(k);
+    }
+    const tinygltf::Value& groups = ext->Get("colliderGroups");
+    const tinygltf::Value& springs = ext->Get("springs");
+    for (size_t s = 0; springs.IsArray() && s < springs.ArrayLen(); ++s) {
+      const std::string field = base + ".springs[" + std::to_string(s) + "]";
+      const tinygltf::Value& spring = springs.Get(int(s));
+      if (spring.Has("center")) ++centres;
+      std::vector<int> list;
+      const tinygltf::Value& own = spring.Get("colliderGroups");
+      for (size_t g = 0; own.IsArray() && g < own.ArrayLen(); ++g) {
+        const tinygltf::Value& gi = own.Get(int(g));
+        AMT_CHECK(gi.IsNumber() && gi.GetNumberAsDouble() >= 0 && gi.GetNumberAsDouble() < double(groups.ArrayLen()),
+                  src, ": ", field, ".colliderGroups[", g, "]: expected a collider group index in [0, ",
+                  groups.IsArray() ? groups.ArrayLen() : 0, ")");
+        const tinygltf::Value& members = groups.Get(int(gi.GetNumberAsDouble())).Get("colliders");
+        for (size_t k = 0; members.IsArray() && k < members.ArrayLen(); ++k) {
+          const tinygltf::Value& ci = members.Get(int(k));
+          AMT_CHECK(
+              ci.IsNumber() && ci.GetNumberAsDouble() >= 0 && ci.GetNumberAsDouble() < double(collider_index.size()),
+              src, ": ", base, ".colliderGroups[", int(gi.GetNumberAsDouble()), "].colliders[", k,
+              "]: expected a collider index in [0, ", collider_index.size(), ")");
+          const int c = collider_index[size_t(ci.GetNumberAsDouble())];
+          if (c >= 0 && std::find(list.begin(), list.end(), c) == list.end()) list.push_back(c);
+        }
+      }
+      const int index = int(rig.spring_colliders.size());
+      rig.spring_colliders.push_back(list);
+      // A spring's joints in order: each joint's segment ends at the next joint (the last has none).
+      const tinygltf::Value& js = spring.Get("joints");
+      for (size_t k = 0; js.IsArray() && k + 1 < js.ArrayLen(); ++k) {
+        const std::string f = field + ".joints[" + std::to_string(k) + "]";
+        const tinygltf::Value& j = js.Get(int(k));
+        const int node = vrm_node(j.Get("node"), m, src, f + ".node");
+        const int next =
+            vrm_node(js.Get(int(k + 1)).Get("node"), m, src, field + ".joints[" + std::to_string(k + 1) + "].node");
+        SpringJoint sj;
+        sj.spring = index;
+        sj.hit_radius = number_or(j, "hitRadius", 0.0f, src, f);
+        sj.stiffness = number_or(j, "stiffness", 1.0f, src, f);
+        sj.gravity_power = number_or(j, "gravityPower", 0.0f, src, f);
+        sj.gravity_dir = vector_or(j, "gravityDir", Eigen::Vector3f(0, -1, 0), src, f);
+        sj.drag = number_or(j, "dragForce", 0.5f, src, f);
+        add(node, rest_point(a, next), sj);
+      }
+    }
+  } else if (const tinygltf::Value* vrm0 = top_extension(m, "VRM")) {
+    const std::string base = "extensions.VRM.secondaryAnimation";
+    const tinygltf::Value& secondary = vrm0->Get("secondaryAnimation");
+    const tinygltf::Value& groups = secondary.Get("colliderGroups");
+    std::vector<std::vector<int>> group_colliders;
+    for (size_t g = 0; groups.IsArray() && g < groups.ArrayLen(); ++g) {
+      const std::string field = base + ".colliderGroups[" + std::to_string(g) + "]";
+      const tinygltf::Value& group = groups.Get(int(g));
+      const int node = vrm_node(group.Get("node"), m, src, field + ".node");
+      std::vector<int> list;
+      const tinygltf::Value& cs = group.Get("colliders");
+      for (size_t c = 0; cs.IsArray() && c < cs.ArrayLen(); ++c) {
+        const std::string f = field + ".colliders[" + std::to_string(c) + "]";
+        SpringCollider k;
+        k.joint = carrier(node);
+        if (k.joint < 0) continue;
+        Eigen::Vector3f offset = vector_or(cs.Get(int(c)), "offset", Eigen::Vector3f::Zero(), src, f);
+        offset.z() = -offset.z();  // VRM 0.x writes collider offsets with z mirrored (Unity's left-handed axes)
+        k.center = k.tail = rest_point(a, node, offset);
+        k.radius = number_or(cs.Get(int(c)), "radius", 0.0f, src, f);
+        AMT_CHECK(k.radius >= 0.0f && k.radius < 100.0f, src, ": ", f, ".radius: expected [0, 100) metres, found ",
+                  k.radius);
+        list.push_back(int(rig.colliders.size()));
+        rig.colliders.push_back(k);
+      }
+      group_colliders.push_back(list);
+    }
+    const tinygltf::Value& bone_groups = secondary.Get("boneGroups");
+    int branches = 0;
+    for (size_t g = 0; bone_groups.IsArray() && g < bone_groups.ArrayLen(); ++g) {
+      const std::string field = base + ".boneGroups[" + std::to_string(g) + "]";
+      const tinygltf::Value& group = bone_groups.Get(int(g));
+      if (group.Has("center") && group.Get("center").IsNumber() && group.Get("center").GetNumberAsDouble() >= 0)
+        ++centres;
+      SpringJoint sj;
+      sj.spring = int(rig.spring_colliders.size());
+      sj.stiffness = number_or(group, "stiffiness", 1.0f, src, field);  // sic: VRM 0.x spells it so
+      sj.gravity_power = number_or(group, "gravityPower", 0.0f, src, field);
+      sj.gravity_dir = vector_or(group, "gravityDir", Eigen::Vector3f(0, -1, 0), src, field);
+      sj.drag = number_or(group, "dragForce", 0.4f, src, field);
+      sj.hit_radius = number_or(group, "hitRadius", 0.02f, src, field);
+      std::vector<int> list;
+      const tinygltf::Value& own = group.Get("colliderGroups");
+      for (size_t k = 0; own.IsArray() && k < own.ArrayLen(); ++k) {
+        const tinygltf::Value& gi = own.Get(int(k));
+        AMT_CHECK(
+            gi.IsNumber() && gi.GetNumberAsDouble() >= 0 && gi.GetNumberAsDouble() < double(group_colliders.size()),
+            src, ": ", field, ".colliderGroups[", k, "]: expected a collider group index in [0, ",
+            group_colliders.size(), ")");
+        for (int c : group_colliders[size_t(gi.GetNumberAsDouble())]) list.push_back(c);
+      }
+      rig.spring_colliders.push_back(list);
+      // Every node under each root is a segment whose tail is its first child, or, for a leaf, a point 7 cm on
+      // along its bone from its parent (UniVRM's VRMSpringBone.SetupRecursive, three-vrm's loader).
+      const tinygltf::Value& roots = group.Get("bones");
+      for (size_t r = 0; roots.IsArray() && r < roots.ArrayLen(); ++r) {
+        const int root = vrm_node(roots.Get(int(r)), m, src, field + ".bones[" + std::to_string(r) + "]");
+        std::vector<int> stack{root};
+        while (!stack.empty()) {
+          const int n = stack.back();
+          stack.pop_back();
+          const auto& children = m.nodes[size_t(n)].children;
+          if (children.size() > 1) ++branches;
+          const Eigen::Vector3f head = rest_point(a, n);
+          Eigen::Vector3f tail;
+          if (!children.empty()) {
+            tail = rest_point(a, children[0]);
+          } else {
+            const int p = a.parent[size_t(n)];
+            const Eigen::Vector3f along = p >= 0 ? Eigen::Vector3f(head - rest_point(a, p)) : Eigen::Vector3f::Zero();
+            tail =
+                head + (along.norm() > 1e-9f ? Eigen::Vector3f(along.normalized()) : Eigen::Vector3f(0, -1, 0)) * 0.07f;
+          }
+          add(n, tail, sj);
+          for (auto c = children.rbegin(); c != children.rend(); ++c) stack.push_back(*c);
+        }
+      }
+    }
+    if (branches > 0)
+      rig.notes.push_back(std::to_string(branches) +
+                          " spring node(s) branch: each takes its first child as its tail, as UniVRM does");
+  }
+  if (centres > 0)
+    rig.notes.push_back(std::to_string(centres) + " spring(s) name a centre node: simulated in world space instead");
+  if (unskinned > 0)
+    rig.notes.push_back(std::to_string(unskinned) +
+                        " spring node(s) move no vertex (not joints of the skin): left out");
+  if (repeated > 0)
+    rig.notes.push_back(std::to_string(repeated) + " spring node(s) listed twice: the first listing kept");
+  std::sort(rig.joints.begin(), rig.joints.end(),
+            [](const SpringJoint& x, const SpringJoint& y) { return x.joint < y.joint; });
+  validate_spring_rig(rig, character.skeleton, src);
+  return rig;
 }
 
 }  // namespace amt

@@ -55,6 +55,7 @@
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/motion.h"
 #include "data_tools/geometry/skeleton.h"
+#include "data_tools/geometry/spring_bones.h"
 #include "data_tools/geometry/types.h"
 
 namespace amt {
@@ -156,6 +157,19 @@ std::optional<JointMapFile> gltf_vrm_joint_map(const GltfAsset& asset, const Glt
 /// extensions.VRMC_springBone.springs[].joints[].node and every joint below them. Empty when the asset has no
 /// spring bones. Throws amt::Error naming the field for a node index out of range.
 std::vector<uint8_t> gltf_vrm_spring_joints(const GltfAsset& asset, const GltfCharacter& character);
+
+/// A VRM avatar's spring bones on `character.skeleton` (rest positions in the file's frame, metres):
+///   VRM 1.0  extensions.VRMC_springBone: each spring's joints in order, a segment from each joint to the next
+///            with the joint's hitRadius, stiffness, gravityPower, gravityDir and dragForce (defaults 0, 1, 0,
+///            [0, -1, 0], 0.5); sphere and capsule colliders through the spring's colliderGroups
+///   VRM 0.x  extensions.VRM.secondaryAnimation: every node under each boneGroups[].bones root, its tail its first
+///            child or, for a leaf, 7 cm on along its bone; the group's stiffiness, gravityPower, gravityDir,
+///            dragForce, hitRadius (defaults 1, 0, {0, -1, 0}, 0.4, 0.02); sphere colliders of colliderGroups with
+///            their z mirrored as VRM 0.x writes them
+/// A collider moves with its node's nearest joint. Stated fallbacks go to `notes` (a branching node, a centre node,
+/// a spring node that is not a joint of the skin, a node listed twice). Empty for a plain glTF. Throws amt::Error
+/// naming the field for an index out of range or a value that is not a finite number.
+SpringRig gltf_vrm_spring_rig(const GltfAsset& asset, const GltfCharacter& character);
 
 // === Animation
 

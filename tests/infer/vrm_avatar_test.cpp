@@ -4,12 +4,16 @@
 // VRMC_springBone; malformed maps are one-line errors naming the field.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/geometry/error.h"
 #include "infer/character_input.h"
@@ -97,11 +101,17 @@ void expect_godette(const RuntimeCharacter& c, const Glb& raw, const std::set<in
   const GltfCharacter g = gltf_character(asset);
   // Mapped by the humanoid map: the bones the map names, each as "joint map" (no naming convention involved).
   const std::map<std::string, int> bones = human_bones(read_glb(kGodette).json);
-  const std::vector<std::pair<std::string, int>> expected = {
-      {"hips", kPelvis},          {"leftUpperLeg", kLeftHip},    {"rightLowerLeg", kRightKnee},
-      {"leftFoot", kLeftAnkle},   {"rightToes", kRightFoot},     {"neck", kNeck},
-      {"head", kHead},            {"leftShoulder", kLeftCollar}, {"rightUpperArm", kRightShoulder},
-      {"leftLowerArm", kLeftElbow}, {"rightHand", kRightWrist}};
+  const std::vector<std::pair<std::string, int>> expected = {{"hips", kPelvis},
+                                                             {"leftUpperLeg", kLeftHip},
+                                                             {"rightLowerLeg", kRightKnee},
+                                                             {"leftFoot", kLeftAnkle},
+                                                             {"rightToes", kRightFoot},
+                                                             {"neck", kNeck},
+                                                             {"head", kHead},
+                                                             {"leftShoulder", kLeftCollar},
+                                                             {"rightUpperArm", kRightShoulder},
+                                                             {"leftLowerArm", kLeftElbow},
+                                                             {"rightHand", kRightWrist}};
   for (const auto& [bone, joint] : expected) {
     const int source = c.rest.mapping.source_joint[size_t(joint)];
     EXPECT_EQ(c.file_skeleton.names[size_t(source)], raw.json["nodes"][size_t(bones.at(bone))]["name"]) << bone;
@@ -181,7 +191,9 @@ TEST(VrmAvatar, AVrm1AvatarWithNamesNoConventionKnowsMapsThroughVrmcVrm) {
   plain.json["extensions"].erase("VRMC_vrm");
   const std::string plain_path = (test::temp_dir("vrm1_plain") / "avatar.glb").string();
   write_glb(plain, plain_path);
-  EXPECT_NE(test::error_of([&] { load_character({plain_path, "", ""}); }).find("could not match canonical joints"),
+  EXPECT_NE(test::error_of([&] {
+              load_character({plain_path, "", ""});
+            }).find("could not match canonical joints"),
             std::string::npos);
 
   const RuntimeCharacter c = load_character({path, "", ""});
@@ -198,8 +210,8 @@ TEST(VrmAvatar, MalformedHumanoidMapsAreOneLineErrorsNamingTheField) {
     return test::error_of([&] { load_character({path, "", ""}); });
   };
   const size_t nodes = read_glb(kGodette).json["nodes"].size();
-  std::string e = error_for([](nlohmann::json& j) { j["extensions"]["VRM"]["humanoid"]["humanBones"][2]["node"] = 99999; },
-                            "far.vrm");
+  std::string e = error_for(
+      [](nlohmann::json& j) { j["extensions"]["VRM"]["humanoid"]["humanBones"][2]["node"] = 99999; }, "far.vrm");
   EXPECT_NE(e.find("far.vrm: extensions.VRM.humanoid.humanBones[2].node: expected a node index in [0, " +
                    std::to_string(nodes) + "), found 99999"),
             std::string::npos)
@@ -209,12 +221,230 @@ TEST(VrmAvatar, MalformedHumanoidMapsAreOneLineErrorsNamingTheField) {
   EXPECT_NE(e.find("humanBones[0].node: expected a node index, found a string"), std::string::npos) << e;
   e = error_for([](nlohmann::json& j) { j["extensions"]["VRM"]["humanoid"]["humanBones"] = 3; }, "shape.vrm");
   EXPECT_NE(e.find("extensions.VRM.humanoid.humanBones: expected an array of {bone, node}"), std::string::npos) << e;
-  e = error_for([](nlohmann::json& j) { j["extensions"]["VRM"]["secondaryAnimation"]["boneGroups"][1]["bones"][0] = -4; },
-                "spring.vrm");
+  e = error_for(
+      [](nlohmann::json& j) { j["extensions"]["VRM"]["secondaryAnimation"]["boneGroups"][1]["bones"][0] = -4; },
+      "spring.vrm");
   EXPECT_NE(e.find("extensions.VRM.secondaryAnimation.boneGroups[1].bones[0]: expected a node index in [0, "),
             std::string::npos)
       << e;
   EXPECT_EQ(e.find('\n'), std::string::npos);
+}
+
+// The joint of `character` on node n, or -1.
+int joint_on(const GltfCharacter& character, int n) {
+  for (size_t j = 0; j < character.joint_nodes.size(); ++j)
+    if (character.joint_nodes[j] == n) return int(j);
+  return -1;
+}
+
+TEST(VrmAvatar, Vrm0SpringBonesAreEveryNodeUnderTheirRootsWithTheirGroupsParametersAndMirroredColliders) {
+  const Glb raw = read_glb(kGodette);
+  const nlohmann::json& secondary = raw.json["extensions"]["VRM"]["secondaryAnimation"];
+  const nlohmann::json& nodes = raw.json["nodes"];
+  const GltfAsset asset = read_gltf(kGodette);
+  const GltfCharacter g = gltf_character(asset);
+  const SpringRig rig = gltf_vrm_spring_rig(asset, g);
+  size_t expected = 0;
+  for (size_t group = 0; group < secondary["boneGroups"].size(); ++group) {
+    const nlohmann::json& bg = secondary["boneGroups"][group];
+    for (const int n : subtree(nodes, bg["bones"].get<std::vector<int>>())) {
+      const int j = joint_on(g, n);
+      if (j < 0) continue;
+      ++expected;
+      const auto it =
+          std::find_if(rig.joints.begin(), rig.joints.end(), [&](const SpringJoint& s) { return s.joint == j; });
+      ASSERT_NE(it, rig.joints.end()) << "node " << n;
+      EXPECT_EQ(it->spring, int(group));
+      EXPECT_FLOAT_EQ(it->stiffness, bg["stiffiness"].get<float>());
+      EXPECT_FLOAT_EQ(it->drag, bg["dragForce"].get<float>());
+      EXPECT_FLOAT_EQ(it->hit_radius, bg["hitRadius"].get<float>());
+      EXPECT_FLOAT_EQ(it->gravity_power, bg["gravityPower"].get<float>());
+      const Eigen::Vector3f head = g.skeleton.rest_joints.row(j).transpose();
+      const auto children = nodes[size_t(n)].value("children", nlohmann::json::array());
+      if (!children.empty()) {  // the tail is the first child
+        const int c = joint_on(g, children[0].get<int>());
+        ASSERT_GE(c, 0);
+        EXPECT_LT((it->tail - g.skeleton.rest_joints.row(c).transpose()).norm(), 1e-6f) << "node " << n;
+      } else {  // 7 cm on along the bone from its parent
+        const Eigen::Vector3f parent = g.skeleton.rest_joints.row(g.skeleton.parents[size_t(j)]).transpose();
+        EXPECT_LT((it->tail - (head + 0.07f * (head - parent).normalized())).norm(), 1e-6f) << "node " << n;
+      }
+    }
+  }
+  EXPECT_EQ(size_t(rig.num_joints()), expected);
+  EXPECT_GE(rig.num_joints(), 10);
+  // Colliders: both groups' spheres, on their nodes' joints, with z mirrored; each spring sees its groups' only.
+  ASSERT_EQ(rig.colliders.size(), 4u);
+  const nlohmann::json& first = secondary["colliderGroups"][0];
+  const int j3 = joint_on(g, first["node"].get<int>());
+  ASSERT_GE(j3, 0);
+  const nlohmann::json& offset = first["colliders"][1]["offset"];
+  const Eigen::Vector3f expected_centre =
+      g.skeleton.rest_joints.row(j3).transpose() +
+      Eigen::Vector3f(offset["x"].get<float>(), offset["y"].get<float>(), -offset["z"].get<float>());
+  EXPECT_EQ(rig.colliders[1].joint, j3);
+  EXPECT_LT((rig.colliders[1].center - expected_centre).norm(), 1e-5f);
+  EXPECT_FLOAT_EQ(rig.colliders[1].radius, first["colliders"][1]["radius"].get<float>());
+  EXPECT_EQ(rig.spring_colliders, (std::vector<std::vector<int>>{{2, 3}, {0, 1}, {}}));
+  EXPECT_TRUE(rig.notes.empty());
+}
+
+// Godette rewritten as VRM 1.0 with per-joint parameters, a sphere and a capsule collider and a centre node.
+Glb godette_vrm1(const std::function<void(nlohmann::json& spring_bone)>& edit = {}) {
+  Glb raw = read_glb(kGodette);
+  nlohmann::json springs = nlohmann::json::array();
+  float stiffness = 1.0f;
+  for (const int r : spring_roots(raw.json)) {
+    nlohmann::json joints = nlohmann::json::array();
+    for (int n = r;;) {
+      joints.push_back({{"node", n},
+                        {"stiffness", stiffness},
+                        {"dragForce", 0.25},
+                        {"gravityPower", 0.5},
+                        {"gravityDir", {1.0, 0.0, 0.0}},
+                        {"hitRadius", 0.01}});
+      stiffness += 0.5f;
+      const auto children = raw.json["nodes"][size_t(n)].value("children", nlohmann::json::array());
+      if (children.empty()) break;
+      n = children[0].get<int>();
+    }
+    springs.push_back({{"joints", joints}, {"colliderGroups", {0}}});
+  }
+  springs[0]["center"] = 3;
+  nlohmann::json colliders = {
+      {{"node", 5}, {"shape", {{"sphere", {{"offset", {0.0, 0.1, 0.2}}, {"radius", 0.15}}}}}},
+      {{"node", 5},
+       {"shape", {{"capsule", {{"offset", {0.0, 0.0, 0.0}}, {"radius", 0.05}, {"tail", {0.0, 0.3, 0.0}}}}}}}};
+  raw.json["extensions"]["VRMC_springBone"] = {{"specVersion", "1.0"},
+                                               {"colliders", colliders},
+                                               {"colliderGroups", {{{"colliders", {0, 1}}}}},
+                                               {"springs", springs}};
+  nlohmann::json human = nlohmann::json::object();
+  for (const auto& [bone, node] : human_bones(raw.json)) human[bone] = {{"node", node}};
+  raw.json["extensions"].erase("VRM");
+  raw.json["extensions"]["VRMC_vrm"] = {{"specVersion", "1.0"}, {"humanoid", {{"humanBones", human}}}};
+  raw.json["extensionsUsed"] = {"VRMC_vrm", "VRMC_springBone"};
+  if (edit) edit(raw.json["extensions"]["VRMC_springBone"]);
+  return raw;
+}
+
+TEST(VrmAvatar, Vrm1SpringsAreSegmentsFromEachJointToTheNextWithTheJointsOwnParameters) {
+  const Glb raw = godette_vrm1();
+  const std::string path = (test::temp_dir("vrm1_springs") / "avatar.vrm").string();
+  write_glb(raw, path);
+  const GltfAsset asset = read_gltf(path);
+  const GltfCharacter g = gltf_character(asset);
+  const SpringRig rig = gltf_vrm_spring_rig(asset, g);
+  int expected = 0;
+  for (const auto& spring : raw.json["extensions"]["VRMC_springBone"]["springs"]) {
+    const auto& joints = spring["joints"];
+    for (size_t k = 0; k + 1 < joints.size(); ++k) {
+      const int j = joint_on(g, joints[k]["node"].get<int>()), next = joint_on(g, joints[k + 1]["node"].get<int>());
+      ASSERT_GE(j, 0);
+      ++expected;
+      const auto it =
+          std::find_if(rig.joints.begin(), rig.joints.end(), [&](const SpringJoint& s) { return s.joint == j; });
+      ASSERT_NE(it, rig.joints.end());
+      EXPECT_FLOAT_EQ(it->stiffness, joints[k]["stiffness"].get<float>());
+      EXPECT_FLOAT_EQ(it->drag, 0.25f);
+      EXPECT_FLOAT_EQ(it->gravity_power, 0.5f);
+      EXPECT_EQ(it->gravity_dir, Eigen::Vector3f(1.0f, 0.0f, 0.0f));
+      EXPECT_FLOAT_EQ(it->hit_radius, 0.01f);
+      EXPECT_LT((it->tail - g.skeleton.rest_joints.row(next).transpose()).norm(), 1e-6f);
+    }
+    // The last joint of a spring has no segment of its own.
+    const int last = joint_on(g, joints.back()["node"].get<int>());
+    EXPECT_TRUE(
+        std::none_of(rig.joints.begin(), rig.joints.end(), [&](const SpringJoint& s) { return s.joint == last; }));
+  }
+  EXPECT_EQ(rig.num_joints(), expected);
+  // A sphere 0.1 up and 0.2 on from node 5 (no VRM 0.x mirroring), and a capsule 0.3 long.
+  ASSERT_EQ(rig.colliders.size(), 2u);
+  const Eigen::Vector3f at5 = g.skeleton.rest_joints.row(joint_on(g, 5)).transpose();
+  EXPECT_LT((rig.colliders[0].center - (at5 + Eigen::Vector3f(0.0f, 0.1f, 0.2f))).norm(), 1e-5f);
+  EXPECT_FALSE(rig.colliders[0].capsule);
+  EXPECT_TRUE(rig.colliders[1].capsule);
+  EXPECT_LT((rig.colliders[1].tail - (at5 + Eigen::Vector3f(0.0f, 0.3f, 0.0f))).norm(), 1e-5f);
+  EXPECT_EQ(rig.notes, (std::vector<std::string>{"1 spring(s) name a centre node: simulated in world space instead"}));
+}
+
+TEST(VrmAvatar, MalformedSpringBonesAreOneLineErrorsNamingTheField) {
+  const auto error_for = [](const std::function<void(nlohmann::json&)>& edit, const std::string& name) {
+    const std::string path = (test::temp_dir("vrm_bad_springs") / name).string();
+    write_glb(godette_vrm1(edit), path);
+    const GltfAsset asset = read_gltf(path);
+    return test::error_of([&] { gltf_vrm_spring_rig(asset, gltf_character(asset)); });
+  };
+  EXPECT_EQ(
+      error_for([](nlohmann::json& e) { e["springs"][0]["joints"][0]["gravityPower"] = "strong"; }, "text.vrm"),
+      (test::temp_dir("vrm_bad_springs") / "text.vrm").string() +
+          ": extensions.VRMC_springBone.springs[0].joints[0].gravityPower: expected a number, found another type");
+  std::string e = error_for([](nlohmann::json& e) { e["springs"][1]["joints"][0]["dragForce"] = 3; }, "drag.vrm");
+  EXPECT_NE(e.find("drag.vrm: spring bone "), std::string::npos) << e;
+  EXPECT_NE(e.find("dragForce: expected a value in [0, 1], found 3"), std::string::npos) << e;
+  e = error_for([](nlohmann::json& e) { e["springs"][0]["colliderGroups"] = {4}; }, "group.vrm");
+  EXPECT_NE(e.find("springs[0].colliderGroups[0]: expected a collider group index in [0, 1)"), std::string::npos) << e;
+  e = error_for([](nlohmann::json& e) { e["colliders"][0]["shape"]["sphere"]["radius"] = -1; }, "radius.vrm");
+  EXPECT_NE(e.find("colliders[0].shape.sphere.radius: expected [0, 100) metres, found -1"), std::string::npos) << e;
+  e = error_for([](nlohmann::json& e) { e["springs"][0]["joints"][1]["node"] = 100000; }, "node.vrm");
+  EXPECT_NE(e.find("springs[0].joints[1].node: expected a node index in [0, "), std::string::npos) << e;
+  for (const std::string& message : {e}) EXPECT_EQ(message.find('\n'), std::string::npos);
+}
+
+// Apparel vertex positions of `amt animate --apparel spring-bones` on Godette with CMU 05_01 at `fps`.
+std::vector<MatrixX3f> spring_run(const std::filesystem::path& dir, int fps, int frames) {
+  const std::string out = "springs_" + std::to_string(fps) + ".h5";
+  const test::CommandResult run = test::run_command(
+      "cd '" + dir.string() + "' && " +
+      test::shell_command(AMT_BINARY, {"animate", "--character", kGodette, "--motion",
+                                       std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh", "--apparel", "spring-bones",
+                                       "--fps", std::to_string(fps), "--frames", std::to_string(frames), "--out", out,
+                                       "--threads", "1", "--quiet"}));
+  EXPECT_EQ(run.status, 0) << run.err;
+  std::vector<MatrixX3f> V;
+  if (run.status != 0) return V;
+  const DatasetReader reader((dir / out).string());
+  for (int t = 0; t < frames; ++t) V.push_back(reader.read_vertices(reader.clip_names().at(0), t, 1));
+  return V;
+}
+
+TEST(VrmAvatar, SpringBonesMoveTheHairTheSameWayAt30And60Fps) {
+  const std::filesystem::path dir = test::temp_dir("vrm_spring_fps");
+  const std::vector<MatrixX3f> a = spring_run(dir, 30, 45), b = spring_run(dir, 60, 90);
+  ASSERT_EQ(a.size(), 45u);
+  ASSERT_EQ(b.size(), 90u);
+  const RuntimeCharacter c = load_character({kGodette, "", ""});
+  double between = 0.0, moved = 0.0;
+  int count = 0;
+  for (int t = 0; t < 45; ++t) {
+    for (int i = 0; i < c.mesh.num_vertices(); ++i) {
+      if (!c.rig_apparel_mask[size_t(i)]) continue;
+      between += (a[size_t(t)].row(i) - b[size_t(2 * t)].row(i)).norm();
+      if (t > 0) moved += (a[size_t(t)].row(i) - a[size_t(t - 1)].row(i)).norm();
+      ++count;
+    }
+  }
+  between /= count, moved /= count;
+  std::cout << "apparel: mean " << 100.0 * between << " cm apart between the 30 and 60 fps runs, moving "
+            << 100.0 * moved << " cm a frame\n";
+  // The hair moves with the walk (centimetres a frame) and the two rates agree to well under the 0.5 cm target.
+  EXPECT_GT(moved, 0.001);
+  EXPECT_LT(between, 0.002) << "mean apparel distance between the 30 and 60 fps runs, metres";
+}
+
+TEST(VrmAvatar, SpringBonesOnACharacterWithoutThemIsAOneLineError) {
+  const std::filesystem::path dir = test::temp_dir("vrm_spring_none");
+  const test::CommandResult run =
+      test::run_command("cd '" + dir.string() + "' && " +
+                        test::shell_command(AMT_BINARY, {"animate", "--character", "generated:3", "--motion",
+                                                         std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh",
+                                                         "--apparel", "spring-bones", "--out", "g.glb", "--quiet"}));
+  EXPECT_NE(run.status, 0);
+  EXPECT_NE(run.err.find("generated:3: --apparel spring-bones: expected a VRM avatar with spring bones"),
+            std::string::npos)
+      << run.err;
+  EXPECT_EQ(std::count(run.err.begin(), run.err.end(), '\n'), 1) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "g.glb"));
 }
 
 }  // namespace
