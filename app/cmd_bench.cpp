@@ -42,8 +42,8 @@
 #include "infer/runtime_benchmark_torch.h"
 #include "infer/runtime_torch.h"
 #include "models/joint_refiner.h"
+#include "models/pipeline.h"
 #include "models/skinning_overfit.h"
-#include "train/pipeline.h"
 #include "train/samples.h"
 
 namespace amt::app {

@@ -1,6 +1,6 @@
 // `amt eval`: scores a trained model (or a file of predictions) on a dataset's held-out characters
-// and clips and writes <out>/report.md, <out>/metrics.json and PNG plots (train/evaluate.h,
-// train/report.h).
+// and clips and writes <out>/report.md, <out>/metrics.json and PNG plots (eval/evaluate.h,
+// eval/report.h).
 #include <iostream>
 #include <memory>
 #include <string>
@@ -13,10 +13,10 @@
 #include "app/repository.h"
 #include "data_tools/formats/viewer_folder.h"
 #include "data_tools/geometry/error.h"
+#include "eval/evaluate.h"
+#include "eval/evaluation_viewer.h"
+#include "eval/report.h"
 #include "infer/runtime_benchmark_torch.h"
-#include "train/evaluate.h"
-#include "train/evaluation_viewer.h"
-#include "train/report.h"
 #include "train/samples.h"
 
 namespace amt::app {

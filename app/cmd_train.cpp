@@ -13,7 +13,7 @@
 
 #include "app/commands.h"
 #include "data_tools/geometry/error.h"
-#include "train/module_options.h"
+#include "models/module_options.h"
 #include "train/trainer.h"
 
 namespace amt::app {
@@ -23,7 +23,7 @@ struct TrainCommand {
   std::string module;
   std::vector<std::string> data;
   std::string variant;
-  // Network options of a fresh run as JSON objects (train/module_options.h); empty: the defaults.
+  // Network options of a fresh run as JSON objects (models/module_options.h); empty: the defaults.
   std::string segmenter_json, skinning_json, apparel_json, refiner_json;
   TrainOptions options;
   bool quiet = false;

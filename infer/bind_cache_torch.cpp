@@ -12,7 +12,7 @@
 #include "data_tools/formats/input_file.h"
 #include "data_tools/geometry/error.h"
 #include "infer/bind_cache_torch.h"
-#include "train/checkpoint.h"
+#include "models/checkpoint.h"
 
 namespace amt {
 

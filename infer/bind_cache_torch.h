@@ -1,5 +1,5 @@
 #pragma once
-// The bind cache (issue 6, item 2): the result of bind_character (train/pipeline.h), stored in one
+// The bind cache (issue 6, item 2): the result of bind_character (models/pipeline.h), stored in one
 // file so that animating the same character again skips segmentation, geodesics, skinning weights and
 // the apparel graph. The file is keyed by a hash of everything the bind depends on: the rest mesh,
 // the rest joints, an apparel-mask override, and the bytes of the model's checkpoint files. A changed
@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "data_tools/geometry/mesh.h"
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 namespace amt {
 

@@ -54,7 +54,7 @@ Motion motion_from_joint_transforms(const Skeleton& skeleton, const Transforms& 
 ///   fps        output frame rate (resampled); empty: 30 fps for BVH and glTF motions, a dataset clip's own rate
 ///   frames     at most this many output frames (0: all)
 ///   lead_in    frames that blend from the character's rest pose to the first frame before output
-///              starts (motion_lead_in of train/pipeline.h); they are run, not written
+///              starts (motion_lead_in of models/pipeline.h); they are run, not written
 struct PlaybackOptions {
   std::optional<float> fps;
   int frames = 0;

@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "train/evaluate.h"
-#include "train/pipeline.h"
+#include "eval/evaluate.h"
+#include "models/pipeline.h"
 
 namespace amt {
 

@@ -1,7 +1,7 @@
 #pragma once
 // The CPU runtime (issue 6): bind once, then stream. `animate` reads a character and a motion, binds
 // the character to the model (through the bind cache), blends the motion in from the rest pose, runs
-// the one forward path of train/pipeline.h frame by frame (LBS, apparel step, refiner, under
+// the one forward path of models/pipeline.h frame by frame (LBS, apparel step, refiner, under
 // c10::InferenceMode), resolves penetration and streams each frame to the output writer.
 // RuntimeSession is the per-frame part alone, for `amt bench --suite runtime` and the tests.
 #include <memory>
@@ -14,7 +14,7 @@
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 #include "infer/motion_input.h"
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 namespace amt {
 
@@ -22,7 +22,7 @@ namespace amt {
 
 /// Wall time of the stages of one frame, seconds.
 ///   model        the pipeline step (LBS + apparel step + refiner) and the copy of V̂ out, inference mode
-///   stages       the split of the pipeline step (train/pipeline.h StepTimes: LBS, apparel, refiner)
+///   stages       the split of the pipeline step (models/pipeline.h StepTimes: LBS, apparel, refiner)
 ///   penetration  the resolution (0 when switched off); output: the writer's append
 struct FrameTimes {
   double model = 0, penetration = 0, output = 0;
@@ -90,7 +90,7 @@ MatrixXfR output_weights(const BoundCharacter& bound);
 // === The `amt animate` job
 
 /// Everything `amt animate` takes.
-///   model_dir   folder of the four checkpoints (train/pipeline.h load_model_bundle)
+///   model_dir   folder of the four checkpoints (models/pipeline.h load_model_bundle)
 ///   out         .glb, .h5 or an OBJ folder (infer/frame_writer.h); may be empty when html_dir is set
 ///   bind_path   bind cache file; empty: "<out without extension>.bind" beside the output (beside
 ///               html_dir/prediction.glb without out); "none" disables

@@ -20,7 +20,7 @@
 #include "data_tools/geometry/types.h"
 #include "models/apparel_dynamics.h"
 #include "models/apparel_handles.h"
-#include "train/checkpoint.h"
+#include "models/checkpoint.h"
 
 namespace amt {
 

@@ -24,8 +24,8 @@
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
-#include "train/module_options.h"
-#include "train/pipeline.h"
+#include "models/module_options.h"
+#include "models/pipeline.h"
 #include "train/samples.h"
 
 namespace amt {

@@ -1,7 +1,7 @@
 #pragma once
 // Trainers of the four modules (docs/training.md, paper section 5.2): AdamW at 1e-4, one seeded
 // sample sequence per run (train/samples.h), a single versioned checkpoint file per module written
-// every K steps and at the end (train/checkpoint.h), a CSV log, a validation loss on held-out
+// every K steps and at the end (models/checkpoint.h), a CSV log, a validation loss on held-out
 // windows every K steps, and a progress line on stderr. The apparel module and the refiner also
 // train end to end (train_apparel_refiner), as the paper does. A run resumed from a checkpoint
 // continues bit for bit as the uninterrupted run would have.
@@ -12,10 +12,10 @@
 #include "models/apparel_displacement.h"
 #include "models/apparel_dynamics.h"
 #include "models/apparel_segmenter.h"
+#include "models/checkpoint.h"
 #include "models/joint_refiner.h"
 #include "models/losses.h"
 #include "models/skinning_predictor.h"
-#include "train/checkpoint.h"
 #include "train/distributed.h"
 
 namespace amt {

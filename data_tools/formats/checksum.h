@@ -1,6 +1,6 @@
 #pragma once
 // CRC-32 (zlib's: the polynomial of zip, PNG and gzip) of the payload of amt's own files.
-// Checkpoints (train/checkpoint.h) and bind caches (infer/bind_cache_torch.h) store it beside their
+// Checkpoints (models/checkpoint.h) and bind caches (infer/bind_cache_torch.h) store it beside their
 // tensors and readers verify it, so that a flipped byte is an error, not a silently wrong model.
 #include <cstddef>
 #include <cstdint>

@@ -3,7 +3,7 @@
 // into body and apparel by a mask, the body surface is the faces with three body vertices, and every
 // pose asks how many apparel vertices lie inside that surface and how deep. The body surface gets one
 // winding-number tree, built on the rest pose and refitted to each pose (WindingNumberTree::refit, O(#F))
-// instead of built anew (O(#F log #F)); the evaluation (train/evaluate.h) measures every predicted
+// instead of built anew (O(#F log #F)); the evaluation (eval/evaluate.h) measures every predicted
 // frame of every method this way.
 #include <memory>
 #include <optional>

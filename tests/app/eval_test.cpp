@@ -1,6 +1,6 @@
 // `amt eval` from the command line on the smallest built dataset: a predictions file and the shipped model
 // scored into a report folder, bad inputs as one line naming the file, and an --out that amt did not write
-// refused and left untouched. (The scores' arithmetic: tests/train/evaluate_torch_test.cpp.)
+// refused and left untouched. (The scores' arithmetic: tests/eval/evaluate_torch_test.cpp.)
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>

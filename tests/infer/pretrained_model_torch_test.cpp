@@ -21,7 +21,7 @@
 #include "data_tools/geometry/retarget.h"
 #include "data_tools/geometry/skeleton.h"
 #include "infer/runtime_torch.h"
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 #include "tests/test_support.h"
 
 namespace amt {

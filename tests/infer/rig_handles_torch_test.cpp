@@ -11,10 +11,10 @@
 #include "data_tools/formats/pmx_export.h"
 #include "infer/bind_cache_torch.h"
 #include "infer/character_input.h"
+#include "models/pipeline.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
-#include "train/pipeline.h"
 
 namespace amt {
 namespace {

@@ -21,8 +21,8 @@
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
-#include "train/checkpoint.h"
-#include "train/module_options.h"
+#include "models/checkpoint.h"
+#include "models/module_options.h"
 
 namespace amt {
 namespace {

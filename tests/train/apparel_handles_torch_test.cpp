@@ -1,4 +1,4 @@
-// The apparel module on handles through bind and the stepper (train/pipeline.h, models/apparel_handles.h):
+// The apparel module on handles through bind and the stepper (models/pipeline.h, models/apparel_handles.h):
 // the stepper equals the module run on the handles plus follow_handles; with a zero network it is the rule
 // on the handles, exactly; a mesh with split seams binds as one surface and its copies move as one.
 #include <ATen/ATen.h>
@@ -15,7 +15,7 @@
 #include "fresh_model.h"
 #include "micro_dataset.h"
 #include "models/apparel_handles.h"
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 namespace amt {
 namespace {

@@ -29,8 +29,8 @@
 #include <vector>
 
 #include "micro_dataset.h"
+#include "models/checkpoint.h"
 #include "tests/test_support.h"
-#include "train/checkpoint.h"
 #include "train/samples.h"
 
 extern char** environ;

@@ -11,10 +11,10 @@
 #include "data_tools/geometry/skeleton.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
+#include "models/checkpoint.h"
 #include "models/joint_refiner.h"
+#include "models/module_options.h"
 #include "models/skinning_predictor.h"
-#include "train/checkpoint.h"
-#include "train/module_options.h"
 
 namespace amt::test {
 

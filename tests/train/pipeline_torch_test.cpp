@@ -1,6 +1,6 @@
-// Tests of train/pipeline.h: bundle loading errors, bind equal to the trainer's per-character tensors,
+// Tests of models/pipeline.h: bundle loading errors, bind equal to the trainer's per-character tensors,
 // the stepper equal to the networks run on whole sequences, the motion lead-in.
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
@@ -17,7 +17,7 @@
 #include "data_tools/geometry/skeleton.h"
 #include "micro_dataset.h"
 #include "fresh_model.h"
-#include "train/module_options.h"
+#include "models/module_options.h"
 #include "train/samples.h"
 
 namespace amt {

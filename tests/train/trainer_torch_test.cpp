@@ -27,8 +27,8 @@
 #include "micro_dataset.h"
 #include "tests/test_support.h"
 #include "models/apparel_segmenter.h"
-#include "train/checkpoint.h"
-#include "train/module_options.h"
+#include "models/checkpoint.h"
+#include "models/module_options.h"
 #include "train/samples.h"
 
 namespace amt {

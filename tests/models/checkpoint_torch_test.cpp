@@ -1,6 +1,6 @@
-// Checkpoints (train/checkpoint.h): save -> load round trip of parameters and AdamW state, and the
+// Checkpoints (models/checkpoint.h): save -> load round trip of parameters and AdamW state, and the
 // errors for a checkpoint of another module, of another version, of another skeleton, or no checkpoint.
-#include "train/checkpoint.h"
+#include "models/checkpoint.h"
 
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
@@ -15,13 +15,13 @@
 
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/skeleton.h"
-#include "micro_dataset.h"
+#include "tests/train/micro_dataset.h"
 #include "tests/file_size_limit.h"
 #include "tests/test_support.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
 #include "models/edge_conv.h"
-#include "train/module_options.h"
+#include "models/module_options.h"
 
 namespace amt {
 namespace {

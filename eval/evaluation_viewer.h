@@ -1,11 +1,11 @@
 #pragma once
 // `amt eval --viewer DIR`: the clips behind an evaluation's numbers, to watch. For each subset the
-// worst, median and best clip by the full model's PMD_a (train/evaluate.h viewer_picks), each as three
+// worst, median and best clip by the full model's PMD_a (eval/evaluate.h viewer_picks), each as three
 // GLBs played side by side by the web viewer (data_tools/formats/viewer_folder.h): the prediction, the ground
 // truth and the skinning baseline, all tinted with the ground-truth apparel mask (COLOR_0).
 #include <string>
 
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 
 namespace amt {
 

@@ -1,6 +1,6 @@
-// Network options as JSON (train/module_options.h): every field is written and read as hand-written JSON
+// Network options as JSON (models/module_options.h): every field is written and read as hand-written JSON
 // says, bad fields are named.
-#include "train/module_options.h"
+#include "models/module_options.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 #include <ATen/ATen.h>
 #include <c10/core/InferenceMode.h>
@@ -23,7 +23,7 @@
 #include "data_tools/geometry/segmentation_features.h"
 #include "data_tools/geometry/skeleton.h"
 #include "models/edge_conv.h"
-#include "train/module_options.h"
+#include "models/module_options.h"
 
 namespace amt {
 namespace {

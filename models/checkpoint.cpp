@@ -1,4 +1,4 @@
-#include "train/checkpoint.h"
+#include "models/checkpoint.h"
 
 #include <torch/serialize/input-archive.h>
 #include <torch/serialize/output-archive.h>
@@ -15,7 +15,7 @@
 #include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/formats/temporary_registry.h"
-#include "train/module_options.h"
+#include "models/module_options.h"
 
 namespace amt {
 namespace {
@@ -370,7 +370,7 @@ Net load_frozen_network(const std::string& path, ModuleKind kind, CheckpointInfo
   return net;
 }
 
-// The networks load_frozen_network is defined for (train/checkpoint.h).
+// The networks load_frozen_network is defined for (models/checkpoint.h).
 template ApparelSegmenter load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(
     const std::string& path, ModuleKind kind, CheckpointInfo& info);
 template SkinningPredictor load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(

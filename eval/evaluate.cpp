@@ -1,4 +1,4 @@
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 
 #include <ATen/ATen.h>
 #include <c10/core/InferenceMode.h>
@@ -27,7 +27,6 @@
 #include "data_tools/geometry/metrics_torch.h"
 #include "models/apparel_dynamics.h"
 #include "models/edge_conv.h"
-#include "train/samples.h"
 
 namespace amt {
 namespace {

@@ -1,4 +1,4 @@
-#include "train/module_options.h"
+#include "models/module_options.h"
 
 #include <nlohmann/json.hpp>
 

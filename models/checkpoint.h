@@ -5,7 +5,7 @@
 //
 // Keys of the archive:
 //   format "amt-checkpoint", version 1, kind ("segmenter" | "skinning" | "apparel" | "refiner"),
-//   options (the network's options, JSON text: train/module_options.h), config (the training
+//   options (the network's options, JSON text: models/module_options.h), config (the training
 //   run's settings, JSON text), step (optimizer steps taken), joint_names (J strings: the skeleton
 //   the module was trained on), data_fingerprint (data_fingerprint() of the training shards),
 //   model/ (parameter_names and buffer_names, the qualified names of the module's tensors, and the
@@ -93,7 +93,7 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
                                std::vector<at::Tensor>* training_parameters = nullptr);
 
 /// A trained network rebuilt for inference from the checkpoint at `path`: reads the info (the kind must be
-/// `kind`), builds a Net from the stored options (options_from_json, train/module_options.h), loads its
+/// `kind`), builds a Net from the stored options (options_from_json, models/module_options.h), loads its
 /// tensors (load_checkpoint) and freezes it: eval mode, no parameter requires grad. `info` receives the
 /// checkpoint's info. Errors name the file and the key, as those of the functions it calls.
 /// Defined for the four networks of models/: (ApparelSegmenter, ApparelSegmenterOptions),

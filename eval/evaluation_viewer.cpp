@@ -1,4 +1,4 @@
-#include "train/evaluation_viewer.h"
+#include "eval/evaluation_viewer.h"
 
 #include <cctype>
 #include <cstdio>

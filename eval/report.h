@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 
 namespace amt {
 

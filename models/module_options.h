@@ -1,5 +1,5 @@
 #pragma once
-// The options of the four networks as JSON text: the form in which checkpoints (train/checkpoint.h)
+// The options of the four networks as JSON text: the form in which checkpoints (models/checkpoint.h)
 // record the configuration that rebuilds a network. Every field is written under its C++ name.
 #include <string>
 

@@ -1,6 +1,6 @@
-// Tests of train/evaluate.h and train/report.h: the skinning baseline scores zero on a dataset whose
+// Tests of eval/evaluate.h and eval/report.h: the skinning baseline scores zero on a dataset whose
 // ground truth is LBS, predictions files are scored with the same code, the report has the tables.
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
@@ -22,13 +22,13 @@
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/skeleton.h"
-#include "fresh_model.h"
-#include "micro_dataset.h"
+#include "eval/evaluation_viewer.h"
+#include "eval/report.h"
+#include "models/module_options.h"
+#include "models/pipeline.h"
 #include "tests/data_tools/builder/tiny_build.h"
-#include "train/evaluation_viewer.h"
-#include "train/module_options.h"
-#include "train/pipeline.h"
-#include "train/report.h"
+#include "tests/train/fresh_model.h"
+#include "tests/train/micro_dataset.h"
 
 namespace amt {
 namespace {

@@ -1,6 +1,6 @@
 #pragma once
 // Evaluation of a trained model on a dataset's held-out data (docs/evaluation.md; paper 5.3 and
-// Tables 2-4): every method runs through the one forward path of train/pipeline.h, and is scored with
+// Tables 2-4): every method runs through the one forward path of models/pipeline.h, and is scored with
 // data_tools/geometry/metrics.h (PMD, PMD_a, PMD_b in cm, ELS, penetration share and depth; vertex -> frame ->
 // clip averaging of ScoreAccumulator) in two protocols:
 //   "paper"    windows of `window` (10) frames at a stride of window - 3, the first 3 apparel states
@@ -23,7 +23,7 @@
 
 #include "data_tools/builder/artist_style.h"
 #include "data_tools/geometry/metrics.h"
-#include "train/pipeline.h"
+#include "models/pipeline.h"
 
 namespace amt {
 

@@ -1,6 +1,6 @@
 #pragma once
 // The full model's forward pass (paper section 4, docs/architecture.md, "The pipeline"), the one code path that the
-// evaluation (train/evaluate.h) and the CPU runtime (infer/) share:
+// evaluation (eval/evaluate.h) and the CPU runtime (infer/) share:
 //   load_model_bundle  the four trained modules from one folder of checkpoints;
 //   bind_character     per-character work that depends only on the rest mesh (segmentation,
 //                      skinning weights from geodesics, apparel graph), computed once;
@@ -20,9 +20,9 @@
 #include "models/apparel_dynamics.h"
 #include "models/apparel_handles.h"
 #include "models/apparel_segmenter.h"
+#include "models/checkpoint.h"
 #include "models/joint_refiner.h"
 #include "models/skinning_predictor.h"
-#include "train/checkpoint.h"
 
 namespace amt {
 
@@ -75,7 +75,7 @@ inline constexpr const char* kSkinningSortedCheckpoint = "skinning_sorted.ckpt";
 /// skinning_no_geodesic.ckpt, skinning_sorted.ckpt (optional), builds each network from its stored
 /// options and puts it in eval mode with gradients off. Throws amt::Error with a one-line reason for
 /// a missing folder or file ("m/apparel.ckpt: no such checkpoint (train it with amt train apparel)"),
-/// a file of another kind or version (train/checkpoint.h), a skinning variant file whose variant
+/// a file of another kind or version (models/checkpoint.h), a skinning variant file whose variant
 /// differs from its name, or checkpoints trained on different skeletons.
 ModelBundle load_model_bundle(const std::string& dir);
 
