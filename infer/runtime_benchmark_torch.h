@@ -4,14 +4,53 @@
 // built (a body of many open, overlapping parts: data_tools/builder/open_parts.h), bound through the
 // bind cache with the dressed character's mask or the segmenter's, then RuntimeSession frame by frame
 // on a walk after a lead-in, timed per stage. Timing is never asserted: the figures are reported.
+#include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "eval/evaluate.h"
 #include "models/pipeline.h"
 
 namespace amt {
+
+/// The per-frame cost of the whole runtime step (`amt animate`'s RuntimeSession: pipeline, penetration
+/// resolution, GLB output) at one thread count; milliseconds are medians over the timed frames.
+struct RuntimeThreadFigures {
+  int threads = 1;
+  double median_ms = std::nan(""), p95_ms = std::nan("");
+  /// Stages of the median split: the model (LBS, apparel network and refiner, and the copy out),
+  /// penetration, output.
+  double model_ms = std::nan(""), lbs_ms = std::nan(""), apparel_ms = std::nan(""), refiner_ms = std::nan("");
+  double penetration_ms = std::nan(""), output_ms = std::nan("");
+  /// Share of apparel vertices inside the body before and after resolution, and the share of inside
+  /// tests carried over from the previous frame.
+  double inside_before = std::nan(""), inside_after = std::nan(""), carried_share = std::nan("");
+  /// Resident memory after the timed frames (MB).
+  double resident_mb = std::nan("");
+  /// The global apparel form's network (the form the local one replaced) timed beside the model's, frame by
+  /// frame on the same character (RuntimeBenchmarkOptions::reference_apparel); NaN when not measured.
+  double reference_apparel_ms = std::nan("");
+};
+
+/// A runtime measurement on one generated character (`amt bench --suite runtime`, `amt eval --runtime`,
+/// whose report tables it, eval/report.h), with the targets it is held to (0: none).
+struct RuntimeFigures {
+  /// What was measured, for the reader: the character, the mask.
+  std::string label, character, mask;
+  int vertices = 0, faces = 0, repeats = 0;
+  /// Apparel vertices of the mask the model ran with, and of the character as built.
+  int apparel_vertices = 0, true_apparel_vertices = 0;
+  /// The apparel module's handles and the widest row of its graph over them (0 for the per-vertex form).
+  int handles = 0, handle_neighbors = 0;
+  double bind_seconds = std::nan(""), peak_resident_mb = std::nan("");
+  std::vector<RuntimeThreadFigures> per_thread;
+  /// Per-frame median at `target_threads` threads at most target_ms; bind at most target_bind_seconds.
+  double target_ms = 0, target_bind_seconds = 0;
+  int target_threads = 2;
+  /// The apparel network's median on one thread in units of the global form's timed beside it at most this
+  /// (0: none).
+  double target_apparel_reference_ratio = 0;
+};
 
 /// What to measure.
 struct RuntimeBenchmarkOptions {
