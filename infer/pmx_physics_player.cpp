@@ -39,7 +39,15 @@ void PmxPhysicsPlayer::start(const Transforms& first, int lead_in) {
 }
 
 void PmxPhysicsPlayer::step(const Transforms& canonical, MatrixX3f& V) {
+  advance(canonical);
+  skin(V);
+}
+
+void PmxPhysicsPlayer::advance(const Transforms& canonical) {
   simulator_.step(canonical);
+}
+
+void PmxPhysicsPlayer::skin(MatrixX3f& V) const {
   linear_blend_skinning(character_.mesh.V, character_.skin, simulator_.skinning(), V);
 }
 

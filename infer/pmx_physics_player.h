@@ -40,6 +40,11 @@ class PmxPhysicsPlayer {
   /// skinned with the simulated rig into `V`.
   void step(const Transforms& canonical, MatrixX3f& V);
 
+  /// step() without the skinning, and the skinning of the last step alone (frames that are simulated but not all
+  /// written: a simulation clock faster than the output).
+  void advance(const Transforms& canonical);
+  void skin(MatrixX3f& V) const;
+
  private:
   PmxCharacter character_;
   PmxRigSimulator simulator_;

@@ -335,18 +335,24 @@ void stream_simulated_frames(const AnimateOptions& o, const RuntimeCharacter& ch
   s.total_seconds = seconds_since(job_start);
 }
 
+// The checks a simulated apparel path (--apparel physics, spring-bones) makes before any work: one output file, no
+// viewer folder, no input overwritten. Returns the summary it starts.
+AnimateSummary start_simulated_path(const AnimateOptions& o, const std::string& apparel) {
+  AMT_CHECK(o.html_dir.empty(), "--html: expected no viewer folder with --apparel ", apparel,
+            " (it shows the learned prediction beside skinning); use --out FILE.glb");
+  AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
+  output_kind(o.out);
+  check_outputs_are_not_inputs(o);
+  AnimateSummary s;
+  s.physics = true;
+  return s;
+}
+
 // `amt animate --apparel physics`: the PMX model's own physics under the motion, skinned by its own rig, streamed
 // to the output. No network and no bind: the model folder is not read.
 AnimateSummary animate_with_physics(const AnimateOptions& o) {
   const auto job_start = Clock::now();
-  AnimateSummary s;
-  s.physics = true;
-  AMT_CHECK(o.html_dir.empty(),
-            "--html: expected no viewer folder with --apparel physics (it shows the learned "
-            "prediction beside skinning); use --out FILE.glb");
-  AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
-  output_kind(o.out);
-  check_outputs_are_not_inputs(o);
+  AnimateSummary s = start_simulated_path(o, "physics");
   const std::string& path = o.character.spec;
   std::string e = std::filesystem::path(path).extension().string();
   std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
@@ -359,13 +365,14 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   std::optional<JointMapFile> joint_map;
   if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
   PmxSimulationOptions simulation;
-  simulation.fps = player.fps();
+  simulation.fps = kPhysicsStepFps;
   PmxPhysicsPlayer physics(path, joint_map, simulation);
   const PmxCharacter& pmx = physics.character();
   int apparel = 0;
   for (const uint8_t m : pmx.apparel_mask) apparel += m;
   s.apparel = "physics (the PMX model's own " + std::to_string(pmx.simulated_bodies) + " simulated rigid bodies and " +
-              std::to_string(pmx.model.joints.size()) + " joints, MMD gravity, simulated in PMX units)";
+              std::to_string(pmx.model.joints.size()) + " joints, MMD gravity, simulated in PMX units at " +
+              std::to_string(int(kPhysicsStepFps)) + " steps per second)";
   s.apparel_source =
       "the PMX physics: " + std::to_string(apparel) + " vertices on bones that simulated rigid bodies drive";
   if (o.verbose) {
@@ -385,36 +392,69 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   info.apparel_mask = pmx.apparel_mask;
   info.weights = pmx_body_weights(pmx);
   std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+  // The physics steps on a clock of its own, kPhysicsStepFps (the motion resampled to it), whatever the output rate:
+  // an output frame at 24, 30, 60 or 120 fps falls on a step and is that step's skinning, so the same clip gives
+  // the same bodies at common times at every rate; a frame between two steps (25 fps) blends their vertices. The
+  // lead-in's frames count at 30 fps, as on the other paths.
+  PlaybackOptions steps = o.playback;
+  steps.fps = kPhysicsStepFps;
+  steps.frames = int(std::floor(double(s.frames - 1) * kPhysicsStepFps / double(s.fps) + 1e-6)) + 2;
+  const MotionPlayer clock(source, character, steps);
   const Transforms first = player.frame(0);
   s.lead_in = std::max(0, o.playback.lead_in);
-  physics.start(first, s.lead_in);
+  physics.start(first, int(std::lround(s.lead_in * double(kPhysicsStepFps) / kApparelStepFps)));
 
+  int taken = -1;  // the last step simulated
+  struct Skinned {
+    int step = -1;
+    MatrixX3f V;
+  } before_step, after_step;
   stream_simulated_frames(o, character, player, first, info, *writer, "PMX physics", job_start, s,
-                          [&](int, const Transforms& T, MatrixX3f& V) { physics.step(T, V); });
+                          [&](int t, const Transforms&, MatrixX3f& V) {
+                            const double x = double(t) * kPhysicsStepFps / double(s.fps);
+                            int k0 = int(std::floor(x + 1e-6));
+                            double a = x - k0 < 1e-6 ? 0.0 : x - k0;
+                            if (k0 >= clock.num_frames() - 1) k0 = clock.num_frames() - 1, a = 0;
+                            const int k1 = a > 0 ? k0 + 1 : k0;
+                            while (taken < k1) {
+                              physics.advance(clock.frame(++taken));
+                              if (taken < k0) continue;
+                              std::swap(before_step, after_step);
+                              after_step.step = taken;
+                              physics.skin(after_step.V);
+                            }
+                            if (a > 0) {
+                              AMT_CHECK(before_step.step == k0, "animate: physics steps out of order at frame ", t);
+                              V = float(1 - a) * before_step.V + float(a) * after_step.V;
+                            } else {
+                              V = after_step.V;
+                            }
+                          });
   return s;
 }
 
-// Per joint of the character's file skeleton, its skinning transform under canonical transforms T: the transform of
-// the canonical joint that carries it (the file's rest poses have no rotations, so a carried joint moves rigidly
-// with its carrier).
+// Per joint of the character's file skeleton, its skinning transform (rest -> posed: p' = R p + t) under canonical
+// joint transforms T (T^(t): R_j and the joint's position, forward_kinematics): the skinning transform of the
+// canonical joint that carries it (the file's rest poses have no rotations, so a carried joint moves rigidly with
+// its carrier).
 Transforms file_pose(const RuntimeCharacter& character, const Transforms& T) {
+  const Transforms M = skinning_matrices(character.skeleton, T);
   Transforms P(character.rest.carrier.size());
-  for (size_t b = 0; b < P.size(); ++b) P[b] = T.at(static_cast<size_t>(character.rest.carrier[b]));
+  for (size_t b = 0; b < P.size(); ++b) P[b] = M.at(static_cast<size_t>(character.rest.carrier[b]));
   return P;
+}
+
+// The file skeleton at rest: identity skinning transforms.
+Transforms file_rest_pose(const RuntimeCharacter& character) {
+  return Transforms(character.rest.carrier.size(),
+                    make_transform(Eigen::Matrix3f::Identity(), Eigen::Vector3f::Zero()));
 }
 
 // `amt animate --apparel spring-bones`: a VRM avatar's own spring bones under the motion, as the VRM specification
 // simulates them, at a fixed internal step (kSpringStepSeconds) whatever the output frame rate. No network, no bind.
 AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   const auto job_start = Clock::now();
-  AnimateSummary s;
-  s.physics = true;
-  AMT_CHECK(o.html_dir.empty(),
-            "--html: expected no viewer folder with --apparel spring-bones (it shows the learned "
-            "prediction beside skinning); use --out FILE.glb");
-  AMT_CHECK(!o.out.empty(), "--out: expected an output, found none");
-  output_kind(o.out);
-  check_outputs_are_not_inputs(o);
+  AnimateSummary s = start_simulated_path(o, "spring-bones");
   const RuntimeCharacter character = load_character(o.character);
   AMT_CHECK(
       character.springs && character.springs->num_joints() > 0, o.character.spec,
@@ -468,11 +508,10 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   s.lead_in = std::max(0, o.playback.lead_in);
   Transforms first_output;
   if (s.lead_in > 0) {
-    const Transforms rest = file_pose(
-        character, Transforms(first.size(), make_transform(Eigen::Matrix3f::Identity(), Eigen::Vector3f::Zero())));
+    const Transforms rest = file_rest_pose(character);
     springs.reset(rest);
     springs.advance(rest, 1.0);
-    const int n = std::max(1, int(std::lround(double(s.lead_in) * double(s.fps) / 30.0)));
+    const int n = std::max(1, int(std::lround(double(s.lead_in) * double(s.fps) / kApparelStepFps)));
     for (int k = 1; k < n; ++k)  // blend weights k / n
       springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), frame_seconds);
     first_output = springs.advance(file_pose(character, first), frame_seconds);
@@ -537,7 +576,7 @@ AnimateSummary animate(const AnimateOptions& o) {
   // The handles: picked automatically along the apparel (auto, model), as the module was trained; or at the rig's
   // own apparel bones (rig). On the held-out characters' ground-truth masks the module on the rig's bones
   // measured worse than on handles picked automatically (rollout PMD_a 3.96 against 3.57 cm, skinning 5.06 cm;
-  // README "Apparel on handles"), so auto does not take them.
+  // CHANGELOG.md, "Apparel on handles and artist-style remakes"), so auto does not take them.
   AMT_CHECK(o.apparel_handles == "auto" || o.apparel_handles == "rig" || o.apparel_handles == "model",
             "--apparel-handles: expected auto, rig or model, found '", o.apparel_handles, "'");
   std::shared_ptr<const ApparelBones> bones;
@@ -614,7 +653,21 @@ AnimateSummary animate(const AnimateOptions& o) {
   }
   MatrixX3f skinned;
 
-  // Lead-in from the rest pose, then the motion.
+  // The module steps at kApparelStepFps, the rate it was trained at. At another output rate it steps on a clock
+  // of its own (the motion resampled to that rate), and each output frame is its exact body skinning plus the
+  // apparel's offset from that skinning interpolated between the two steps around the frame's time.
+  const bool resample = std::abs(s.fps - kApparelStepFps) > 1e-3f;
+  std::optional<MotionPlayer> step_player;
+  if (resample) {
+    PlaybackOptions steps = o.playback;
+    steps.fps = kApparelStepFps;
+    steps.frames = int(std::floor(double(s.frames - 1) * kApparelStepFps / double(s.fps) + 1e-6)) + 2;
+    step_player.emplace(source, character, steps);
+  }
+  const MotionPlayer& clock = resample ? *step_player : player;
+  const MatrixXfR anchor = resample ? anchor_skinning_weights(session.bound()) : MatrixXfR();
+
+  // Lead-in from the rest pose (in model steps, so it lasts as long at every output rate), then the motion.
   const Transforms first = player.frame(0);
   s.lead_in = std::max(0, o.playback.lead_in);
   {
@@ -622,12 +675,53 @@ AnimateSummary animate(const AnimateOptions& o) {
     const at::Tensor lead = motion_lead_in(transforms_tensor(first), rest_joints, s.lead_in);
     for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
   }
-  MatrixX3f V;
+  MatrixX3f V, stepped;
+  // The last two model steps as (step index, vertices minus their anchor skinning), for interpolation.
+  struct Offsets {
+    int step = -1;
+    MatrixX3f offset;
+  } before_step, after_step;
+  auto step_model = [&](int k, const Transforms& T, FrameTimes& times) {
+    PenetrationReport report;
+    const FrameTimes step_times = session.step(T, resample ? stepped : V, &report);
+    times.model += step_times.model, times.penetration += step_times.penetration;
+    s.before.inside += report.before.inside, s.before.total += report.before.total;
+    s.before.depth_sum_cm += report.before.depth_sum_cm;
+    s.after.inside += report.after.inside, s.after.total += report.after.total;
+    s.after.depth_sum_cm += report.after.depth_sum_cm;
+    s.carried += report.carried;
+    ++s.apparel_steps;
+    if (!resample) return;
+    MatrixX3f skinned_step;
+    linear_blend_skinning(character.mesh.V, anchor, skinning_matrices(character.skeleton, T), skinned_step);
+    std::swap(before_step, after_step);
+    after_step.step = k;
+    after_step.offset = stepped - skinned_step;
+  };
   FrameLoop loop(o, character.mesh, s.frames);
   for (int t = 0; t < s.frames; ++t) {
     const Transforms T = t == 0 ? first : player.frame(t);
-    PenetrationReport report;
-    FrameTimes times = session.step(T, V, &report);
+    FrameTimes times;
+    if (!resample) {
+      step_model(t, T, times);
+    } else {
+      // Output frame t lies at step position x = k0 + a, between steps k0 and k0 + 1.
+      const double x = double(t) * kApparelStepFps / double(s.fps);
+      int k0 = int(std::floor(x + 1e-6));
+      double a = x - k0 < 1e-6 ? 0.0 : x - k0;
+      if (k0 >= clock.num_frames() - 1) k0 = clock.num_frames() - 1, a = 0;  // the clip's last fraction of a step
+      const int k1 = a > 0 ? k0 + 1 : k0;
+      for (int k = after_step.step + 1; k <= k1; ++k) step_model(k, k == 0 ? first : clock.frame(k), times);
+      const auto blend_start = Clock::now();
+      linear_blend_skinning(character.mesh.V, anchor, skinning_matrices(character.skeleton, T), V);
+      if (a > 0) {
+        AMT_CHECK(before_step.step == k0, "animate: apparel steps out of order at frame ", t);
+        V += float(1 - a) * before_step.offset + float(a) * after_step.offset;
+      } else {
+        V += after_step.offset;
+      }
+      times.model += seconds_since(blend_start);
+    }
     const auto out_start = Clock::now();
     if (writer) writer->append(V, T);
     if (html_prediction) {
@@ -638,11 +732,6 @@ AnimateSummary animate(const AnimateOptions& o) {
     times.output = seconds_since(out_start);
     loop.done(t, V, info.apparel_mask, times.total());
     s.mean.model += times.model, s.mean.penetration += times.penetration, s.mean.output += times.output;
-    s.before.inside += report.before.inside, s.before.total += report.before.total;
-    s.before.depth_sum_cm += report.before.depth_sum_cm;
-    s.after.inside += report.after.inside, s.after.total += report.after.total;
-    s.after.depth_sum_cm += report.after.depth_sum_cm;
-    s.carried += report.carried;
   }
   const std::string written = writer ? writer->finish() : "";
   if (html_prediction) {
@@ -669,6 +758,13 @@ std::string describe(const AnimateSummary& s) {
                 "frames: %d at %.4g fps (%.2f s of motion, after %d lead-in frames from the rest pose)%s\n", s.frames,
                 s.fps, s.frames / s.fps, s.lead_in, s.exact_motion ? ", dataset transforms as stored" : "");
   out << line;
+  if (s.apparel_steps > 0 && s.apparel_steps != s.frames) {
+    std::snprintf(line, sizeof(line),
+                  "apparel module: %d steps at %.4g steps per second (the rate it was trained at), interpolated to "
+                  "the %.4g fps output\n",
+                  s.apparel_steps, double(kApparelStepFps), double(s.fps));
+    out << line;
+  }
   std::snprintf(line, sizeof(line), "character: %d vertices, %d apparel (%.0f %%, mask from ", s.vertices,
                 s.apparel_vertices, 100.0 * s.apparel_vertices / std::max(1, s.vertices));
   out << line << s.apparel_source << ")\n";

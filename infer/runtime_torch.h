@@ -137,6 +137,9 @@ struct AnimateSummary {
   std::string output, html_dir;
   int frames = 0, lead_in = 0;
   float fps = 30.0f;
+  /// Steps of the learned apparel module: at kApparelStepFps whatever the output rate, the output frames
+  /// interpolated between them (equal to `frames` at that rate; 0 on the simulated paths).
+  int apparel_steps = 0;
   int vertices = 0, apparel_vertices = 0;
   /// Where the apparel mask came from ("the segmenter", "the rig: ...", "the file ...").
   std::string apparel_source;
@@ -146,7 +149,8 @@ struct AnimateSummary {
   /// handles (0: it moves every apparel vertex).
   TopologyCounts topology;
   int64_t handles = 0;
-  /// Where the handles are: "picked automatically ..." or "the rig's N apparel bones ..." (AnimateOptions::apparel_handles).
+  /// Where the handles are: "picked automatically ..." or "the rig's N apparel bones ..."
+  /// (AnimateOptions::apparel_handles).
   std::string handle_source;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
@@ -169,6 +173,15 @@ struct AnimateSummary {
 /// The default bind cache path of an output: "<out without extension>.bind" (for an OBJ folder,
 /// "<folder>.bind" beside it).
 std::string default_bind_path(const std::string& out);
+
+/// The rate the learned apparel module steps at: the frame rate of the data it was trained on (`amt dataset build`,
+/// 30 fps). An output at another rate is interpolated between its steps, so the apparel swings the same way at 24,
+/// 60 or 120 fps instead of faster or slower with the output rate.
+inline constexpr float kApparelStepFps = 30.0f;
+
+/// The rate `amt animate --apparel physics` steps a PMX model's physics at (each step of 2 Bullet substeps of
+/// 1/240 s): a multiple of 24, 30, 60 and 120 fps, so frames at those rates fall on steps.
+inline constexpr float kPhysicsStepFps = 120.0f;
 
 /// Runs the whole job. Throws amt::Error on bad input (before any output is created where it can be
 /// checked up front); the output is complete or absent.

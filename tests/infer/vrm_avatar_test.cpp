@@ -16,7 +16,10 @@
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/geometry/error.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
 #include "infer/character_input.h"
+#include "infer/motion_input.h"
 #include "tests/test_support.h"
 
 namespace amt {
@@ -430,6 +433,43 @@ TEST(VrmAvatar, SpringBonesMoveTheHairTheSameWayAt30And60Fps) {
   // The hair moves with the walk (centimetres a frame) and the two rates agree to well under the 0.5 cm target.
   EXPECT_GT(moved, 0.001);
   EXPECT_LT(between, 0.002) << "mean apparel distance between the 30 and 60 fps runs, metres";
+}
+
+// Every vertex the springs do not move is the file's own skinning under the motion, computed here from the public
+// pieces: the canonical joint transforms of the motion on the character, their skinning transforms, each file joint
+// carried by its canonical joint, the file's weights. (A pose handed to the springs as joint transforms instead of
+// skinning transforms moves each vertex by its joint's rest position: the head by a metre.)
+TEST(VrmAvatar, SpringBonesLeaveTheBodyToTheFilesOwnSkinning) {
+  const std::filesystem::path dir = test::temp_dir("vrm_spring_body");
+  const std::vector<MatrixX3f> out = spring_run(dir, 30, 12);
+  ASSERT_EQ(out.size(), 12u);
+  const RuntimeCharacter c = load_character({kGodette, "", ""});
+  MotionSpec spec;
+  spec.spec = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
+  PlaybackOptions playback;
+  playback.fps = 30.0f;
+  const MotionPlayer player(load_motion(spec), c, playback);
+  double worst = 0.0, apparel_moved = 0.0;
+  int apparel = 0;
+  for (int t = 0; t < 12; ++t) {
+    const Transforms M = skinning_matrices(c.skeleton, player.frame(t));
+    Transforms file(c.rest.carrier.size());
+    for (size_t b = 0; b < file.size(); ++b) file[b] = M.at(size_t(c.rest.carrier[b]));
+    MatrixX3f expected;
+    linear_blend_skinning(c.mesh.V, c.file_weights, file, expected);
+    for (int i = 0; i < c.mesh.num_vertices(); ++i) {
+      const double d = (out[size_t(t)].row(i) - expected.row(i)).norm();
+      if (c.rig_apparel_mask[size_t(i)]) {
+        apparel_moved += d, ++apparel;
+      } else {
+        worst = std::max(worst, d);
+      }
+    }
+  }
+  EXPECT_LT(worst, 1e-5) << "metres: a vertex the springs do not move, against the file's skinning";
+  ASSERT_GT(apparel, 0);
+  EXPECT_GT(apparel_moved / apparel, 1e-3) << "the spring-driven vertices move away from rigid skinning";
+  EXPECT_LT(apparel_moved / apparel, 0.2) << "... by centimetres, not by a body's height";
 }
 
 TEST(VrmAvatar, SpringBonesOnACharacterWithoutThemIsAOneLineError) {
