@@ -1,5 +1,7 @@
 // `amt animate`: a character and a motion -> an animated GLB, an OBJ folder or a dataset file
 // (infer/runtime_torch.h). Prints the joint mappings, a progress line and a summary.
+#include <cctype>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -27,7 +29,13 @@ void add_animate_command(CLI::App& app) {
                   "used), .obj (+ <name>.joints.json), .pmx, data.h5:character, or "
                   "generated:SEED[:VERTICES]")
       ->required();
-  cmd->add_option("--motion", o->motion.spec, "Motion: .bvh, .glb/.gltf animation, or data.h5:clip")->required();
+  cmd->add_option("--motion", o->motion.spec,
+                  "Motion: .bvh, .glb/.gltf animation, .vmd (MikuMikuDance, posed on the PMX model it was made for: "
+                  "--motion-model, or the --character when it is a .pmx), or data.h5:clip")
+      ->required();
+  cmd->add_option("--motion-model", o->motion.model,
+                  "The PMX model a .vmd motion was made for (default: the --character when it is a .pmx): its bones "
+                  "are posed as MikuMikuDance poses them (IK, append rotations), then played on the character");
   auto* model = cmd->add_option("--model", o->model_dir,
                                 "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner). " +
                                     repository_default_help(kDefaultModel));
@@ -102,6 +110,18 @@ void add_animate_command(CLI::App& app) {
       options.model_dir = repository_default(kDefaultModel, "--model", "FOLDER (trained model)");
     if (*fps > 0) options.playback.fps = float(*fps);
     if (*bvh_scale > 0) options.motion.bvh_scale = *bvh_scale;
+    // A VMD motion without --motion-model is taken as made for the character: a PMX character's file (and its
+    // joint map) poses it.
+    const auto lower_extension = [](const std::string& path) {
+      std::string e = std::filesystem::path(path).extension().string();
+      for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+      return e;
+    };
+    if (options.motion.model.empty() && lower_extension(options.motion.spec) == ".vmd" &&
+        lower_extension(options.character.spec) == ".pmx") {
+      options.motion.model = options.character.spec;
+      if (options.motion.joint_map.empty()) options.motion.joint_map = options.character.joint_map;
+    }
     options.resolve_penetration = !*no_resolve;
     options.verbose = !*quiet;
     const AnimateSummary summary = animate(options);

@@ -4,10 +4,15 @@
 #include <cmath>
 #include <filesystem>
 
+#include "data_tools/builder/mmd_pose.h"
+#include "data_tools/builder/pmx_dataset.h"
+#include "data_tools/builder/pmx_physics.h"
 #include "data_tools/formats/bvh_import.h"
 #include "data_tools/formats/dataset_file.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/pmx_import.h"
+#include "data_tools/formats/vmd_import.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/retarget.h"
 
 namespace amt {
@@ -36,6 +41,63 @@ void finish_canonical(CanonicalMotion&& canonical, const std::vector<std::string
   rest.mapping = canonical.mapping;
   rest.placed = placed;
   out.mapping = rest.describe(file_names);
+}
+
+// A VMD motion on the canonical skeleton of the PMX model it was made for: the model's bones posed frame by frame as
+// MMD poses them (data_tools/builder/mmd_pose.h: IK, append rotations), brought to amt's frame, then each canonical
+// joint turns with the global rotation of its mapped bone (PMX bones have no rest rotation, so that rotation is
+// already relative to the rest pose) and the pelvis moves as its bone does, as to_canonical does for BVH and glTF.
+void vmd_to_canonical(const MotionSpec& spec, const std::optional<JointMapFile>& user_map, SourceMotion& out) {
+  const std::string& path = spec.spec;
+  AMT_CHECK(!spec.model.empty(), path, ": motion: a VMD motion has no skeleton and needs the PMX model it was made ",
+            "for: give it with --motion-model MODEL.pmx (or animate that .pmx as the --character)");
+  AMT_CHECK(lower_extension(spec.model) == ".pmx", spec.model, ": --motion-model: expected the .pmx model the VMD ",
+            "motion was made for, found extension '", lower_extension(spec.model), "'");
+  const VmdMotion vmd = read_vmd(path);
+  const PmxModel model = read_pmx(spec.model);
+  AMT_CHECK(!model.bones.empty(), spec.model, ": bones: expected the bones a VMD motion poses, found none");
+  const Skeleton file = pmx_skeleton(pmx_to_amt_frame(model, kPmxMetresPerUnit));
+  CanonicalRest rest;
+  try {
+    rest = canonical_rest(file, user_map, spec.model);
+  } catch (const Error& err) {
+    rethrow_with_hint(err);
+  }
+  // Only the mapped bones' transforms are kept: a long dance on a model of hundreds of bones stays small.
+  const int J = rest.skeleton.num_joints();
+  const std::vector<int> mapped(rest.mapping.source_joint.begin(), rest.mapping.source_joint.begin() + J);
+  const MmdBoneMotion bones = mmd_bone_motion(model, vmd, mapped);
+  Motion& m = out.motion;
+  m.fps = kVmdFps;
+  m.joint_names = rest.skeleton.names;
+  m.local_rotations.assign(size_t(bones.frames) * size_t(J), Eigen::Quaternionf::Identity());
+  m.root_translation.setZero(bones.frames, 3);
+  for (int t = 0; t < bones.frames; ++t) {
+    // g[j]: canonical joint j's mapped bone, in amt's frame.
+    const Transforms g = pmx_transforms_to_amt(Transforms(bones.globals.begin() + std::ptrdiff_t(size_t(t) * J),
+                                                          bones.globals.begin() + std::ptrdiff_t(size_t(t + 1) * J)),
+                                               kPmxMetresPerUnit);
+    const auto global = [&](int j) -> Eigen::Matrix3f { return g[size_t(j)].leftCols<3>(); };
+    for (int j = 0; j < J; ++j) {
+      const int p = rest.skeleton.parents[size_t(j)];
+      const Eigen::Matrix3f R = p >= 0 ? Eigen::Matrix3f(global(p).transpose() * global(j)) : global(j);
+      m.rotation(t, j) = Eigen::Quaternionf(R).normalized();
+    }
+    m.root_translation.row(t) = g[0].col(3).transpose() - rest.skeleton.rest_joints.row(0);
+  }
+  out.skeleton = rest.skeleton;
+
+  std::string notes = detail::concat("from a VMD motion on ", spec.model, ": ", vmd.bone_keys.size(),
+                                     " bone keyframes on ", bones.matched_bones, " of the model's ", model.bones.size(),
+                                     " bones, posed as MMD poses them (IK solved on every frame: the VMD's IK-enable "
+                                     "track is not read)");
+  if (bones.unmatched_keys > 0) {
+    notes += detail::concat("\n  ", bones.unmatched_keys, " keyframes on bones the model does not have, ignored:");
+    for (size_t k = 0; k < bones.unmatched_bones.size() && k < 12; ++k) notes += " " + bones.unmatched_bones[k];
+    if (bones.unmatched_bones.size() > 12) notes += " ...";
+  }
+  if (!vmd.ignored_note().empty()) notes += "\n  " + vmd.ignored_note();
+  out.mapping = notes + "\n  " + rest.describe(file.names);
 }
 
 }  // namespace
@@ -119,8 +181,10 @@ SourceMotion load_motion(const MotionSpec& spec) {
       rethrow_with_hint(err);
     }
     if (!sampled.clip.empty()) out.name = sampled.clip;
+  } else if (e == ".vmd") {
+    vmd_to_canonical(spec, user_map, out);
   } else {
-    fail(path, ": motion: expected a .bvh, .glb, .gltf file or file.h5:clip, found extension '", e, "'");
+    fail(path, ": motion: expected a .bvh, .glb, .gltf, .vmd file or file.h5:clip, found extension '", e, "'");
   }
   validate_motion(out.motion, out.skeleton, path);
   return out;

@@ -19,11 +19,14 @@ namespace amt {
 ///   joint_map  the user's joint map (`--motion-joint-map`), or empty
 ///   clip       glTF clip name ("" = the first)
 ///   bvh_scale  metres per BVH unit; detected when empty
+///   model      for a .vmd motion, the PMX model it was made for (`--motion-model`, else the character when it
+///              is a .pmx): its bones are posed as MikuMikuDance poses them, then mapped to the canonical joints
 struct MotionSpec {
   std::string spec;
   std::string joint_map;
   std::string clip;
   std::optional<double> bvh_scale;
+  std::string model;
 };
 
 /// A motion on the canonical skeleton.
@@ -54,7 +57,8 @@ Motion motion_from_joint_transforms(const Skeleton& skeleton, const Transforms& 
 ///   fps        output frame rate (resampled); empty: 30 fps for BVH and glTF motions, a dataset clip's own rate
 ///   frames     at most this many output frames (0: all)
 ///   lead_in    frames that blend from the character's rest pose to the first frame before output
-///              starts (motion_lead_in of models/pipeline.h); they are run, not written
+///              starts (motion_lead_in of models/pipeline.h); they are run, not written, and count at 30 fps
+///              whatever the output rate, so the lead-in lasts lead_in / 30 seconds on every path
 struct PlaybackOptions {
   std::optional<float> fps;
   int frames = 0;
