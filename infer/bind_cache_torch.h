@@ -7,7 +7,7 @@
 //
 // File: a torch::serialize archive (TorchScript zip) with format "amt-bind", version kBindVersion, the key, and
 // one tensor per BoundCharacter field (the hung pieces' two counts as one int64 tensor), and a CRC-32 of all of
-// it; written to "<path>.tmp" and renamed.
+// it; written to "<path>.amt-tmp" and renamed.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -35,7 +35,7 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
                      const ModelBundle& bundle, const ApparelBones* bones = nullptr);
 
-/// Writes a bound character and its key to `path` (through "<path>.tmp"). Throws amt::Error when the
+/// Writes a bound character and its key to `path` (through "<path>.amt-tmp"). Throws amt::Error when the
 /// file cannot be written.
 void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound);
 
@@ -55,7 +55,8 @@ struct BindResult {
 };
 
 /// Loads the bind from `cache_path` when its key matches, else binds (bind_character with the mask
-/// override, if any, and `bones` as the apparel module's handles: BindOptions::apparel_bones) and writes the cache. An empty `cache_path` disables the cache.
+/// override, if any, and `bones` as the apparel module's handles: BindOptions::apparel_bones) and writes the cache. An
+/// empty `cache_path` disables the cache.
 ///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1)
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
                        const std::vector<uint8_t>& mask_override, const std::string& cache_path,

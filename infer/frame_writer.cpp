@@ -11,9 +11,9 @@
 
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/dataset_file.h"
-#include "data_tools/geometry/error.h"
-#include "data_tools/formats/temporary_registry.h"
 #include "data_tools/formats/obj_io.h"
+#include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/error.h"
 #include "infer/glb_stream_writer.h"
 
 namespace amt {
@@ -35,8 +35,8 @@ std::string megabytes(uintmax_t bytes) {
 class GlbWriter : public FrameWriter {
  public:
   GlbWriter(const std::string& path, const OutputInfo& info)
-      : path_(path), writer_(path, info.mesh.F, info.mesh.num_vertices(), info.fps, info.character, info.clip,
-                info.apparel_mask) {}
+      : path_(path),
+        writer_(path, info.mesh.F, info.mesh.num_vertices(), info.fps, info.character, info.clip, info.apparel_mask) {}
   void append(const MatrixX3f& V, const Transforms&) override { writer_.append(V); }
   std::string finish() override { return path_ + ", " + megabytes(writer_.finish()); }
   int num_frames() const override { return writer_.num_frames(); }
@@ -84,7 +84,7 @@ class DatasetFrameWriter : public FrameWriter {
 // === OBJ folders: amt replaces a folder only when it wrote it
 //
 // Every OBJ folder amt writes holds the marker file kObjMarker ("amt-obj-sequence", its version and
-// frame count), written first into the temporary folder "<out>.tmp". A folder, or a temporary left
+// frame count), written first into the temporary folder "<out>.amt-tmp". A folder, or a temporary left
 // by a killed run, is amt's when it holds the marker and nothing but frame_*.obj files: only such a
 // folder is replaced (the output) or removed (the stale temporary). Anything else is refused.
 
@@ -272,7 +272,7 @@ void check_output_writable(const std::string& path) {
     fail(path, ": --out: expected a writable location, found that its folder cannot be created (", e.what(), ")");
   }
   // A probe file beside the output (for an OBJ folder, inside its parent).
-  const std::string probe = kind == "obj" ? target + ".probe.tmp" : temporary_path(path);
+  const std::string probe = kind == "obj" ? target + ".probe" + kTemporarySuffix : temporary_path(path);
   prepare_temporary_file(probe);
   register_temporary(probe);
   std::FILE* f = std::fopen(probe.c_str(), "wb");

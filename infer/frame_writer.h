@@ -6,7 +6,7 @@
 //          the apparel mask in use, skinning weights) and one clip whose `vertices` are the predictions,
 //          so that `amt eval --predictions` can score it against the ground truth of the same names
 //   other  a folder of OBJ files frame_0000.obj, ... (data_tools/formats/obj_io.h)
-// Nothing half-written: each output is built under a temporary name ("<out>.tmp", a folder for OBJ)
+// Nothing half-written: each output is built under a temporary name ("<out>.amt-tmp", a folder for OBJ)
 // and renamed onto the output by finish(); a writer destroyed before finish() removes it.
 // Nothing lost: a .glb or .h5 output replaces only a regular file; an OBJ folder holds the marker
 // file ".amt-output" (format amt-obj-sequence, version, frame count) and replaces only a folder that

@@ -2,17 +2,18 @@
 // A streaming writer of the mesh-sequence GLB of data_tools/formats/gltf_export.h ("morph target per frame",
 // the same layout, the same asset.extras record), for outputs too long to hold in memory: each frame's
 // deltas go to a temporary data file as they come, and finish() assembles the GLB (JSON chunk, then
-// the binary chunk copied from the data file) under "<path>.tmp" and renames it onto the path. Memory
+// the binary chunk copied from the data file) under "<path>.amt-tmp" and renames it onto the path. Memory
 // is the first frame, the faces and 24 bytes of bounds per frame, whatever the frame count.
 //
 // Binary chunk order: frame 0 positions, indices, the apparel tint COLOR_0 (when a mask is given), the
-// T - 1 delta targets in frame order, the sparse weight indices and values, the keyframe times. A writer destroyed before finish() removes its
-// temporary files and leaves the path untouched.
+// T - 1 delta targets in frame order, the sparse weight indices and values, the keyframe times. A writer destroyed
+// before finish() removes its temporary files and leaves the path untouched.
 #include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "data_tools/formats/atomic_file.h"
 #include "data_tools/geometry/types.h"
 
 namespace amt {
@@ -23,11 +24,11 @@ class GlbStreamWriter {
   /// Largest frame count (the sparse weights accessor addresses T (T - 1) elements with 32-bit indices).
   static constexpr int kMaxFrames = 65536;
 
-  /// The temporary file of the frame data while `path` is written: "<path>.frames.tmp".
-  static std::string frames_temporary_path(const std::string& path) { return path + ".frames.tmp"; }
+  /// The temporary file of the frame data while `path` is written: "<path>.frames.amt-tmp".
+  static std::string frames_temporary_path(const std::string& path) { return path + ".frames" + kTemporarySuffix; }
 
   /// Starts a sequence at `path` (.glb) over faces F (#F by 3) of `num_vertices` vertices at `fps`.
-  /// Creates the parent folder and the temporary data file "<path>.frames.tmp". `name` names the mesh
+  /// Creates the parent folder and the temporary data file "<path>.frames.amt-tmp". `name` names the mesh
   /// and node, `clip` the animation; `apparel_mask` (#V entries 0/1, or empty for none) is written as
   /// the COLOR_0 tint of data_tools/formats/gltf_export.h. Throws amt::Error for bad faces, a mask of the wrong
   /// size, fps <= 0, or an unwritable path.

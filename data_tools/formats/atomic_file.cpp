@@ -7,12 +7,14 @@
 
 #include <unistd.h>
 
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt {
 
-std::string temporary_path(const std::string& path) { return path + ".tmp"; }
+std::string temporary_path(const std::string& path) {
+  return path + kTemporarySuffix;
+}
 
 void create_parent_folder(const std::string& path) {
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();

@@ -1,14 +1,18 @@
 #pragma once
 // Writing files so that no partial output ever replaces a good file: everything the project writes
-// goes to "<path>.tmp" first and is renamed onto the path only when complete.
+// goes to "<path>.amt-tmp" first and is renamed onto the path only when complete. The suffix is amt's own, so a
+// stale temporary of a killed run can be replaced without ever touching a user's "<path>.amt-tmp".
 #include <filesystem>
 #include <string>
-#include <vector>
 #include <string_view>
+#include <vector>
 
 namespace amt {
 
-/// The temporary name a file is written under before it replaces `path`: "<path>.tmp".
+/// The suffix of amt's temporaries.
+inline constexpr const char* kTemporarySuffix = ".amt-tmp";
+
+/// The temporary name a file is written under before it replaces `path`: "<path>.amt-tmp".
 std::string temporary_path(const std::string& path);
 
 /// Creates the folder that will hold `path` (and its parents) when missing; throws amt::Error

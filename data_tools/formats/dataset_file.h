@@ -127,7 +127,7 @@ std::optional<ApparelBones> rig_apparel_bones(const CharacterData& character);
 
 // === Writer
 
-/// Writes a dataset file. Everything goes to a temporary file beside the target ("<path>.tmp");
+/// Writes a dataset file. Everything goes to a temporary file beside the target ("<path>.amt-tmp");
 /// commit() closes it and renames it onto `path`, so a failed or interrupted run never leaves a
 /// partial file in place of a good one. Destroying the writer without commit() removes the
 /// temporary file and leaves `path` untouched. Every input is validated (throws amt::Error).

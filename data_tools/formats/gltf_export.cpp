@@ -127,9 +127,9 @@ class ModelBuilder {
   /// Adds the apparel tint's record to asset.extras (after set_format).
   void set_apparel_record(int apparel_vertices) {
     tinygltf::Value::Object extras = model_.asset.extras.Get<tinygltf::Value::Object>();
-    extras["apparel_color"] = tinygltf::Value(tinygltf::Value::Array{
-        tinygltf::Value(int(kApparelColor[0])), tinygltf::Value(int(kApparelColor[1])),
-        tinygltf::Value(int(kApparelColor[2]))});
+    extras["apparel_color"] = tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(int(kApparelColor[0])),
+                                                                     tinygltf::Value(int(kApparelColor[1])),
+                                                                     tinygltf::Value(int(kApparelColor[2]))});
     extras["apparel_vertices"] = tinygltf::Value(apparel_vertices);
     model_.asset.extras = tinygltf::Value(extras);
   }
@@ -168,7 +168,7 @@ GltfContainer container_for(const std::string& path, const GltfExportOptions& op
   return extension == ".gltf" ? GltfContainer::kEmbeddedGltf : GltfContainer::kGlb;
 }
 
-// Serialises the model and writes it to "<path>.tmp", then renames it onto path.
+// Serialises the model and writes it to "<path>.amt-tmp", then renames it onto path.
 void write_model(const std::string& path, ModelBuilder& builder, GltfContainer container) {
   tinygltf::Model& model = builder.model();
   const size_t bytes = model.buffers[0].data.size();

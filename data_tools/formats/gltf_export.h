@@ -33,7 +33,7 @@
 //     exactly amt's forward kinematics, and skinning gives linear_blend_skinning.
 //
 // Files: GLB by default; .gltf JSON with the buffer embedded as a base64 data URI on request. Every
-// file is written to "<path>.tmp" and renamed onto `path`, so a failed export never leaves a partial
+// file is written to "<path>.amt-tmp" and renamed onto `path`, so a failed export never leaves a partial
 // file. asset.generator is "amt <version>"; asset.extras records {"amt_format": "mesh-sequence" or
 // "rigged-character", "amt_format_version": 1, "fps": fps}. Units are metres, Y up.
 #include <optional>

@@ -16,7 +16,7 @@
 // "format", "version" and "units" may be left out of a hand-written file; when present they must be
 // "amt-joints", 1 and "metres".
 //
-// Every file is written to "<path>.tmp" and renamed onto the path. Errors are amt::Error with one line
+// Every file is written to "<path>.amt-tmp" and renamed onto the path. Errors are amt::Error with one line
 // "file: field: expected X, found Y" (with the line number for OBJ vertex lines).
 #include <string>
 #include <vector>

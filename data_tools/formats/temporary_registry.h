@@ -1,5 +1,5 @@
 #pragma once
-// The temporaries this process is writing ("<out>.tmp" files and folders, "<out>.frames.tmp", ...),
+// The temporaries this process is writing ("<out>.amt-tmp" files and folders, "<out>.frames.amt-tmp", ...),
 // so that SIGINT and SIGTERM can remove them before the process exits (app/main.cpp). A writer
 // registers a temporary before it creates it and unregisters it once the temporary is renamed into
 // place or removed. Thread-safe; no LibTorch.

@@ -69,7 +69,7 @@ TEST(AnimateCommand, WritesTheFramesAskedForAsAGlbAndAnObjFolder) {
   EXPECT_LT((last.V - frames.frames[2]).cwiseAbs().maxCoeff(), 1e-5f);  // the same model, the same frame
   // Again to the same folder: amt's own OBJ folder is replaced.
   test::expect_success(dir, animate("frames", {"--bind", "none"}));
-  EXPECT_FALSE(fs::exists(dir / "frames.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "frames.amt-tmp"));
 }
 
 TEST(AnimateCommand, ApparelMaskFromTheRigTheSegmenterOrAFile) {
@@ -175,7 +175,8 @@ TEST(AnimateCommand, AnOutputThatIsOneOfTheRunsInputsIsRefusedAndTheInputKept) {
        {animate("x.glb", {"--apparel-mask", "mask.txt", "--bind", "mask.txt"}),
         {"mask.txt: --bind: expected a new file, found the run's own input mask.txt (--apparel-mask)"}},
        // Two outputs onto one file.
-       {animate("x.glb", {"--picture", "x.glb"}), {"x.glb: --picture: expected a file of its own, found the run's --out output"}}});
+       {animate("x.glb", {"--picture", "x.glb"}),
+        {"x.glb: --picture: expected a file of its own, found the run's --out output"}}});
 }
 
 }  // namespace

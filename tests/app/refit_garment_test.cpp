@@ -40,7 +40,7 @@ TEST(RefitGarmentCommand, DressesAGeneratedBodyWithTheBuildersSkirtAsARiggedGlb)
   EXPECT_NE(r.out.find("fit distance"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("wrote dressed.glb"), std::string::npos) << r.out;
   EXPECT_GT(fs::file_size(dir / "refit.png"), 1000u);
-  EXPECT_FALSE(fs::exists(dir / "dressed.glb.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "dressed.glb.amt-tmp"));
   // The dressed target: the body's vertices, then the skirt's, skinned on the 22 canonical joints.
   const GltfCharacter dressed = gltf_character(read_gltf((dir / "dressed.glb").string()));
   EXPECT_EQ(dressed.skeleton.num_joints(), 22);

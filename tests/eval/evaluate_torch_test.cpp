@@ -477,7 +477,7 @@ TEST(Evaluate, ArtistStyleSubsetScoresTheRemadeCharacters) {
     ASSERT_NE(skinning, nullptr) << protocol;
     EXPECT_GT(skinning->separation.pairs, 0);
     EXPECT_LT(skinning->separation.seam_gap_max_cm, 1e-3) << protocol;  // float rounding of the two partings
-    EXPECT_LT(skinning->scores.pmd_b, 0.05) << protocol;  // the body's ground truth is skinning, remade
+    EXPECT_LT(skinning->scores.pmd_b, 0.05) << protocol;                // the body's ground truth is skinning, remade
     ASSERT_NE(result.find("full", protocol, kHeldOutArtistStyle), nullptr) << protocol;
   }
   ReportOptions report;
@@ -552,7 +552,7 @@ TEST(Report, WritesTablesJsonAndPlots) {
   std::stringstream json;
   json << std::ifstream(files.json).rdbuf();
   EXPECT_NE(json.str().find("\"format\": \"amt-eval\""), std::string::npos);
-  EXPECT_FALSE(std::filesystem::exists(files.json + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(files.json + ".amt-tmp"));
   if (!gnuplot_png_terminal().empty()) {
     ASSERT_EQ(files.plots.size(), 2u) << md.str();
     EXPECT_EQ(files.plots[0], "loss_apparel.png");

@@ -109,13 +109,13 @@ TEST(AnimateCli, SigtermMidRunRemovesTheTemporariesAndKeepsTheGoodOutput) {
   const std::string log = (f.dir / "log.txt").string();
   const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, SIGTERM, [&] {
     std::error_code e;
-    return fs::file_size(out + ".frames.tmp", e) > 0 && !e;
+    return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
   });
   EXPECT_EQ(code, 128 + SIGTERM) << test::read_file_bytes(log);
   EXPECT_NE(test::read_file_bytes(log).find("amt: stopped by SIGTERM; removed 1 temporary file"), std::string::npos)
       << test::read_file_bytes(log);
-  EXPECT_FALSE(fs::exists(out + ".frames.tmp"));
-  EXPECT_FALSE(fs::exists(out + ".tmp"));
+  EXPECT_FALSE(fs::exists(out + ".frames.amt-tmp"));
+  EXPECT_FALSE(fs::exists(out + ".amt-tmp"));
   EXPECT_EQ(test::read_file_bytes(out), good);
 }
 
@@ -128,14 +128,14 @@ TEST(AnimateCli, SighupAndSigquitMidRunRemoveTheTemporaries) {
     const std::string log = (f.dir / (name + ".txt")).string();
     const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, signal, [&] {
       std::error_code e;
-      return fs::file_size(out + ".frames.tmp", e) > 0 && !e;
+      return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
     });
     EXPECT_EQ(code, 128 + signal) << test::read_file_bytes(log);
     EXPECT_NE(test::read_file_bytes(log).find("amt: stopped by " + name + "; removed 1 temporary file"),
               std::string::npos)
         << test::read_file_bytes(log);
-    EXPECT_FALSE(fs::exists(out + ".frames.tmp")) << name;
-    EXPECT_FALSE(fs::exists(out + ".tmp")) << name;
+    EXPECT_FALSE(fs::exists(out + ".frames.amt-tmp")) << name;
+    EXPECT_FALSE(fs::exists(out + ".amt-tmp")) << name;
     EXPECT_FALSE(fs::exists(out)) << name;  // nothing was there before: nothing half-written is left
   }
 }
@@ -146,11 +146,11 @@ TEST(AnimateCli, SigintMidRunRemovesTheTemporaryObjFolder) {
   const std::string log = (f.dir / "log.txt").string();
   const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, SIGINT, [&] {
     std::error_code e;
-    auto it = fs::directory_iterator(out + ".tmp", e);
+    auto it = fs::directory_iterator(out + ".amt-tmp", e);
     return !e && std::distance(it, fs::directory_iterator()) >= 3;  // the marker and two frames
   });
   EXPECT_EQ(code, 128 + SIGINT) << test::read_file_bytes(log);
-  EXPECT_FALSE(fs::exists(out + ".tmp"));
+  EXPECT_FALSE(fs::exists(out + ".amt-tmp"));
   EXPECT_FALSE(fs::exists(out));
   EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));  // the finished bind cache stays
 }
@@ -176,11 +176,11 @@ TEST(AnimateCli, AFullDiskGivesOneLineErrorsAndLeavesNoTemporary) {
     std::string out, bind, expected;
   };
   const std::vector<Case> cases = {
-      {"walk.glb", "none", (d / "walk.glb.frames.tmp").string() + ": write: expected to write "},
+      {"walk.glb", "none", (d / "walk.glb.frames.amt-tmp").string() + ": write: expected to write "},
       {"walk.h5", "none", (d / "walk.h5").string() + ": "},
-      {"frames", "none", (d / "frames.tmp").string() + "/frame_0000.obj.tmp: write: expected "},
+      {"frames", "none", (d / "frames.amt-tmp").string() + "/frame_0000.obj.amt-tmp: write: expected "},
       {"bound.glb", (d / "walk.bind").string(),
-       (d / "walk.bind.tmp").string() + ": write: expected the whole bind cache written, found an error"}};
+       (d / "walk.bind.amt-tmp").string() + ": write: expected the whole bind cache written, found an error"}};
   for (const Case& c : cases) {
     const test::CommandResult r = test::run_command(
         full_disk + shell_command(animate_args(f, f.data + ":walk0", (d / c.out).string(), {"--bind", c.bind})));
@@ -201,10 +201,9 @@ TEST(AnimateCli, TheShippedModelAnimatesAGeneratedCharacter) {
   const fs::path dir = test::temp_dir("cli_shipped_model");
   const std::string out = (dir / "walk.glb").string();
   const std::string model = fs::path(AMT_ASSET_DIR).parent_path().string() + "/models/pretrained";
-  const test::CommandResult r = test::run_command(
-      shell_command({"animate", "--character", "generated:7", "--motion",
-                     std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh", "--model", model, "--frames", "4", "--out",
-                     out, "--threads", "1", "--quiet"}));
+  const test::CommandResult r = test::run_command(shell_command(
+      {"animate", "--character", "generated:7", "--motion", std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh",
+       "--model", model, "--frames", "4", "--out", out, "--threads", "1", "--quiet"}));
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(r.out.rfind("wrote " + out + ", ", 0), 0u) << r.out;
   const GltfVertexAnimation frames = gltf_vertex_animation(read_gltf(out), "", 30.0f);

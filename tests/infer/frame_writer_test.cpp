@@ -111,21 +111,21 @@ TEST(ObjFolderOutput, RefusesTheCurrentFolderAndTheFoldersAboveIt) {
 TEST(ObjFolderOutput, ReplacesAStaleTemporaryOfAmtsAndLeavesAForeignOneAlone) {
   const fs::path dir = test::temp_dir("obj_stale");
   // A killed run's temporary: the marker (written first) and some frames.
-  fs::create_directories(dir / "frames.tmp");
-  std::ofstream(dir / "frames.tmp" / ".amt-output") << "amt-obj-sequence\nversion 1\nframes 0\n";
-  std::ofstream(dir / "frames.tmp" / "frame_0000.obj") << "v 0 0 0\n";
+  fs::create_directories(dir / "frames.amt-tmp");
+  std::ofstream(dir / "frames.amt-tmp" / ".amt-output") << "amt-obj-sequence\nversion 1\nframes 0\n";
+  std::ofstream(dir / "frames.amt-tmp" / "frame_0000.obj") << "v 0 0 0\n";
   write_frames((dir / "frames").string(), 2);
   EXPECT_EQ(names_in(dir), (std::vector<std::string>{"frames"}));
   EXPECT_EQ(names_in(dir / "frames"), (std::vector<std::string>{".amt-output", "frame_0000.obj", "frame_0001.obj"}));
   // A folder named like the temporary that amt did not write.
-  fs::create_directories(dir / "other.tmp");
-  std::ofstream(dir / "other.tmp" / "backup.obj") << "v 1 2 3\n";
+  fs::create_directories(dir / "other.amt-tmp");
+  std::ofstream(dir / "other.amt-tmp" / "backup.obj") << "v 1 2 3\n";
   const std::string e = refusal((dir / "other").string());
-  EXPECT_NE(e.find((dir / "other.tmp").string() + ": --out: expected no file there or the temporary folder of an "
-                                                  "interrupted amt run, found a folder amt did not write"),
+  EXPECT_NE(e.find((dir / "other.amt-tmp").string() + ": --out: expected no file there or the temporary folder of an "
+                                                      "interrupted amt run, found a folder amt did not write"),
             std::string::npos)
       << e;
-  EXPECT_EQ(test::read_file_bytes(dir / "other.tmp" / "backup.obj"), "v 1 2 3\n");
+  EXPECT_EQ(test::read_file_bytes(dir / "other.amt-tmp" / "backup.obj"), "v 1 2 3\n");
   EXPECT_FALSE(fs::exists(dir / "other"));
 }
 
@@ -147,21 +147,23 @@ TEST(FileOutput, NeverReplacesAFolderALinkOrAFifo) {
   EXPECT_NE(e.find("found a FIFO"), std::string::npos) << e;
   // A link as the temporary would be written through: refused, its target untouched.
   std::ofstream(dir / "precious.txt") << "precious";
-  fs::create_symlink(dir / "precious.txt", dir / "d.glb.tmp");
+  fs::create_symlink(dir / "precious.txt", dir / "d.glb.amt-tmp");
   e = refusal((dir / "d.glb").string());
-  EXPECT_NE(e.find("d.glb.tmp: temporary: expected no file or a stale temporary file, found a symbolic link"),
+  EXPECT_NE(e.find("d.glb.amt-tmp: temporary: expected no file or a stale temporary file, found a symbolic link"),
             std::string::npos)
       << e;
-  fs::create_symlink(dir / "precious.txt", dir / "e.glb.frames.tmp");
+  fs::create_symlink(dir / "precious.txt", dir / "e.glb.frames.amt-tmp");
   e = refusal((dir / "e.glb").string());
-  EXPECT_NE(e.find("e.glb.frames.tmp: temporary:"), std::string::npos) << e;
+  EXPECT_NE(e.find("e.glb.frames.amt-tmp: temporary:"), std::string::npos) << e;
   EXPECT_EQ(test::read_file_bytes(dir / "precious.txt"), "precious");
   // A stale regular temporary of a killed run is replaced.
-  std::ofstream(dir / "f.glb.frames.tmp") << "stale";
-  std::ofstream(dir / "f.glb.tmp") << "stale";
+  std::ofstream(dir / "f.glb.frames.amt-tmp") << "stale";
+  std::ofstream(dir / "f.glb.amt-tmp") << "stale";
+  std::ofstream(dir / "f.glb.tmp") << "the user's own";  // not amt's suffix: never touched
   write_frames((dir / "f.glb").string(), 2);
-  EXPECT_FALSE(fs::exists(dir / "f.glb.frames.tmp"));
-  EXPECT_FALSE(fs::exists(dir / "f.glb.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "f.glb.frames.amt-tmp"));
+  EXPECT_FALSE(fs::exists(dir / "f.glb.amt-tmp"));
+  EXPECT_EQ(test::read_file_bytes(dir / "f.glb.tmp"), "the user's own");
   EXPECT_GT(fs::file_size(dir / "f.glb"), 100u);
 }
 

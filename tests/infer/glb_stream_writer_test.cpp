@@ -45,8 +45,8 @@ TEST(GlbStreamWriter, FramesReadBackAndMatchTheInMemoryExport) {
     const size_t bytes = writer.finish();
     EXPECT_EQ(bytes, std::filesystem::file_size(path));
   }
-  EXPECT_FALSE(std::filesystem::exists(path + ".frames.tmp"));
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".frames.amt-tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
   const GltfVertexAnimation back = gltf_vertex_animation(read_gltf(path), "", 24.0f);
   ASSERT_EQ(back.frames.size(), size_t(T));
   EXPECT_EQ(back.faces, mesh.F);
@@ -116,12 +116,14 @@ TEST(GlbStreamWriter, TheApparelMaskTravelsAsVertexColours) {
     test::expect_valid_gltf(path);
   }
   mask[0] = 2;
-  EXPECT_NE(test::error_of([&] { GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask); })
-                .find("apparel mask: expected 0 or 1, found 2 at vertex 0"),
+  EXPECT_NE(test::error_of([&] {
+              GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask);
+            }).find("apparel mask: expected 0 or 1, found 2 at vertex 0"),
             std::string::npos);
   mask.pop_back();
-  EXPECT_NE(test::error_of([&] { GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask); })
-                .find("apparel mask: expected"),
+  EXPECT_NE(test::error_of([&] {
+              GlbStreamWriter(streamed, mesh.F, mesh.num_vertices(), 30.0f, "m", "c", mask);
+            }).find("apparel mask: expected"),
             std::string::npos);
 }
 
@@ -151,7 +153,7 @@ TEST(GlbStreamWriter, BufferedBytesDoNotGrowWithTheFrameCount) {
   // Frame 0, one delta scratch frame and the 16-bit indices.
   EXPECT_EQ(after_two, size_t(mesh.num_vertices()) * 24 + size_t(mesh.num_faces()) * 6);
   // The frame data went to disk as it came (all but what stdio still buffers).
-  const size_t on_disk = std::filesystem::file_size(dir / "long.glb.frames.tmp");
+  const size_t on_disk = std::filesystem::file_size(dir / "long.glb.frames.amt-tmp");
   const size_t deltas = size_t(399) * size_t(mesh.num_vertices()) * 12;
   EXPECT_LE(on_disk, deltas);
   EXPECT_GE(on_disk + 65536, deltas);

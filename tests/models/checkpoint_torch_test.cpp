@@ -15,13 +15,13 @@
 
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/skeleton.h"
-#include "tests/train/micro_dataset.h"
-#include "tests/file_size_limit.h"
-#include "tests/test_support.h"
 #include "models/apparel_displacement.h"
 #include "models/apparel_segmenter.h"
 #include "models/edge_conv.h"
 #include "models/module_options.h"
+#include "tests/file_size_limit.h"
+#include "tests/test_support.h"
+#include "tests/train/micro_dataset.h"
 
 namespace amt {
 namespace {
@@ -93,8 +93,8 @@ TEST(Checkpoint, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
     error = error_of([&] { save_checkpoint(path, apparel_info(net), *net, &optimizer); });
   }
   // No std::terminate from LibTorch's archive writer: one line, the temporary gone, the good file kept.
-  EXPECT_EQ(error, path + ".tmp: write: expected the whole checkpoint written, found an error (File too large)");
-  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  EXPECT_EQ(error, path + ".amt-tmp: write: expected the whole checkpoint written, found an error (File too large)");
+  EXPECT_FALSE(fs::exists(path + ".amt-tmp"));
   EXPECT_EQ(test::read_file_bytes(path), good);
 }
 
@@ -143,8 +143,7 @@ TEST(Checkpoint, AFlippedByteInTheOptimizersStateIsAChecksumErrorOnResume) {
   std::ofstream(path, std::ios::binary) << bytes;
   // The model alone still loads (its own checksum holds); resuming does not.
   EXPECT_NO_THROW(load_checkpoint(path, ModuleKind::kApparel, *loaded, nullptr));
-  const std::string error =
-      error_of([&] { load_checkpoint(path, ModuleKind::kApparel, *loaded, &loaded_optimizer); });
+  const std::string error = error_of([&] { load_checkpoint(path, ModuleKind::kApparel, *loaded, &loaded_optimizer); });
   EXPECT_EQ(error.rfind(path + ": optimizer_crc32: expected ", 0), 0u) << error;
   EXPECT_NE(error.find("over the optimizer's state: the file is damaged"), std::string::npos) << error;
 }
@@ -157,7 +156,7 @@ TEST(Checkpoint, RoundTripRestoresParametersAndOptimizerState) {
   train_two_steps(net, optimizer);
   const std::string path = temp_path("apparel.ckpt");
   save_checkpoint(path, apparel_info(net), *net, &optimizer);
-  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  EXPECT_FALSE(fs::exists(path + ".amt-tmp"));
 
   const CheckpointInfo info = read_checkpoint_info(path, ModuleKind::kApparel);
   EXPECT_EQ(info.kind, ModuleKind::kApparel);

@@ -24,12 +24,28 @@ TEST(AtomicFile, WritesThroughATemporaryAndCreatesFolders) {
   const auto dir = std::filesystem::path(::testing::TempDir()) / ("amt_atomic_" + std::to_string(getpid()));
   std::filesystem::remove_all(dir);
   const std::string path = (dir / "a" / "b" / "out.txt").string();
-  EXPECT_EQ(temporary_path(path), path + ".tmp");
+  EXPECT_EQ(temporary_path(path), path + ".amt-tmp");
   write_file_atomically(path, "first");
   EXPECT_EQ(read_all(path), "first");
   write_file_atomically(path, "second");
   EXPECT_EQ(read_all(path), "second");
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
+  std::filesystem::remove_all(dir);
+}
+
+// amt's temporaries carry a suffix of their own: a user's "<out>.tmp" survives every write of <out>, and a stale
+// "<out>.amt-tmp" (a killed run's) is replaced.
+TEST(AtomicFile, AUsersDotTmpFileIsNeverTouched) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("amt_atomic_user_tmp_" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "out.json").string();
+  std::ofstream(path + ".tmp") << "the user's notes";
+  std::ofstream(path + ".amt-tmp") << "a killed run's half";
+  write_file_atomically(path, "complete");
+  EXPECT_EQ(read_all(path), "complete");
+  EXPECT_EQ(read_all(path + ".tmp"), "the user's notes");
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
   std::filesystem::remove_all(dir);
 }
 
@@ -48,9 +64,9 @@ TEST(AtomicFile, FailuresKeepTheGoodFileAndNameThePath) {
   // A rename onto a folder fails: the temporary is removed, the folder untouched.
   const std::string good = (dir / "good").string();
   std::filesystem::create_directories(good + "/inside");
-  std::ofstream(good + ".tmp") << "new";
-  EXPECT_THROW(replace_with_temporary(good + ".tmp", good), Error);
-  EXPECT_FALSE(std::filesystem::exists(good + ".tmp"));
+  std::ofstream(good + ".amt-tmp") << "new";
+  EXPECT_THROW(replace_with_temporary(good + ".amt-tmp", good), Error);
+  EXPECT_FALSE(std::filesystem::exists(good + ".amt-tmp"));
   EXPECT_TRUE(std::filesystem::is_directory(good + "/inside"));
   std::filesystem::remove_all(dir);
 }
@@ -70,13 +86,14 @@ TEST(AtomicFile, AnUnwritableLocationIsRefusedBeforeAnyWork) {
     check_writable_location(blocked, "--out");
     FAIL() << "expected an error";
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), blocked + ": --out: cannot write into " + (dir / "blocker").string() +
-                                         " (a regular file, not a folder)");
+    EXPECT_EQ(std::string(e.what()),
+              blocked + ": --out: cannot write into " + (dir / "blocker").string() + " (a regular file, not a folder)");
   }
   // A folder without write permission (root may write anywhere, so only checked for other users).
   if (::geteuid() != 0) {
     std::filesystem::create_directories(dir / "locked");
-    std::filesystem::permissions(dir / "locked", std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    std::filesystem::permissions(dir / "locked",
+                                 std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
     try {
       check_writable_location((dir / "locked" / "report").string(), "--out");
       FAIL() << "expected an error";

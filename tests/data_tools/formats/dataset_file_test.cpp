@@ -45,7 +45,7 @@ class TempPath {
   void remove() const {
     std::error_code ignored;
     fs::remove(path_, ignored);
-    fs::remove(path_ + ".tmp", ignored);
+    fs::remove(path_ + ".amt-tmp", ignored);
   }
   std::string path_;
 };
@@ -232,7 +232,7 @@ TEST(DatasetFile, RoundTripsCharacterAndVertexClipBitwise) {
     writer.end_clip();
     writer.commit();
   }
-  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_FALSE(fs::exists(path.str() + ".amt-tmp"));
 
   const DatasetReader reader(path.str());
   EXPECT_EQ(reader.fps(), 24.0f);
@@ -415,7 +415,7 @@ TEST(DatasetFile, WriterWithoutCommitLeavesNoFile) {
     EXPECT_FALSE(fs::exists(path.str()));
   }
   EXPECT_FALSE(fs::exists(path.str()));
-  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_FALSE(fs::exists(path.str() + ".amt-tmp"));
 }
 
 TEST(DatasetFile, WriterWithoutCommitKeepsTheGoodFile) {
@@ -432,7 +432,7 @@ TEST(DatasetFile, WriterWithoutCommitKeepsTheGoodFile) {
     expect_error([&] { writer.append_frame(Transforms(2), tetrahedron("ann", s).mesh.V); },
                  {path.str(), "/clips/c9/joint_transforms", "expected J = 3", "found 2"});
   }
-  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_FALSE(fs::exists(path.str() + ".amt-tmp"));
   ASSERT_TRUE(fs::exists(path.str()));
   EXPECT_EQ(fs::file_size(path.str()), size);
   const DatasetReader reader(path.str());
@@ -479,7 +479,7 @@ TEST(DatasetFile, AFullDiskIsAOneLineErrorAndKeepsTheGoodFile) {
   EXPECT_EQ(error.rfind(path.str() + ": ", 0), 0u) << error;
   EXPECT_NE(error.find("file write failed (File too large)"), std::string::npos) << error;
   EXPECT_EQ(error.find('\n'), std::string::npos) << error;
-  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_FALSE(fs::exists(path.str() + ".amt-tmp"));
   EXPECT_EQ(fs::file_size(path.str()), size);
   EXPECT_EQ(DatasetReader(path.str()).clip_names(), std::vector<std::string>{"c1"});
 }
@@ -531,7 +531,7 @@ TEST(DatasetFileErrors, WrongVersion) {
                {path.str(), "attribute 'version': expected 1 to 2, found 7", "newer amt"});
   expect_error([&] { DatasetWriter::append(path.str()); }, {path.str(), "attribute 'version'"});
   // The append failed before anything changed: no temporary file is left behind.
-  EXPECT_FALSE(fs::exists(path.str() + ".tmp"));
+  EXPECT_FALSE(fs::exists(path.str() + ".amt-tmp"));
 }
 
 TEST(DatasetFileErrors, MissingField) {

@@ -2,8 +2,8 @@
 // (tools/gltf-validator/validate.mjs, installed by scripts/setup.sh) and read back by the importer
 // (vertex positions of every frame, skeleton, weights, joint positions by forward kinematics), the
 // Fox re-exported, and bad input (no file written, no temporary left).
-#include "tests/test_support.h"
 #include "data_tools/formats/gltf_export.h"
+#include "tests/test_support.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,8 +15,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/shapes.h"
@@ -75,7 +75,7 @@ TEST(GltfExport, MeshSequenceGlbRoundTripAndValidator) {
   options.clip = "wave";
   export_gltf_mesh_sequence(path.string(), sphere.F, frames, 30.0f, options);
   ASSERT_TRUE(std::filesystem::exists(path));
-  EXPECT_FALSE(std::filesystem::exists(path.string() + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path.string() + ".amt-tmp"));
   expect_valid_gltf(path);
   expect_sequence_round_trip(path, sphere, frames, 30.0f);
   const GltfAsset asset = read_gltf(path.string());
@@ -254,7 +254,7 @@ TEST(GltfExport, BadInputWritesNothing) {
   EXPECT_EQ(error_of([&] { export_gltf_rigged(path, r.mesh, r.skeleton, weights, r.motion); }),
             path + ": weights: expected joint indices in [0, 22), found 40 at vertex 5");
   EXPECT_FALSE(std::filesystem::exists(path));
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
 
   // A folder that does not exist: the error names the temporary file.
   // A missing folder is created; a folder that cannot be (a file is in the way) is an error.
@@ -274,7 +274,7 @@ TEST(GltfExport, ReplacesAnExistingFile) {
   const TriMesh sphere = uv_sphere(Eigen::Vector3f(0, 0, 0), 1.0f, 8, 4);
   export_gltf_mesh_sequence(path, sphere.F, {sphere.V}, 30.0f);
   EXPECT_EQ(read_text(path).substr(0, 4), "glTF");
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
 }
 
 }  // namespace

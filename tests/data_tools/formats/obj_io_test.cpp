@@ -1,8 +1,8 @@
 // OBJ import and export: bit-exact round trips (a sphere, extreme float values, the Fox's rest mesh),
 // polygons, groups, relative indices and texture/normal indices in a hand-written file, the joint
 // sidecar (round trip, hand-written order, bad files), OBJ sequences, and bad input.
-#include "tests/test_support.h"
 #include "data_tools/formats/obj_io.h"
+#include "tests/test_support.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,8 +15,8 @@
 #include <random>
 #include <sstream>
 
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/gltf_import.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/shapes.h"
 
 namespace amt {
@@ -59,7 +59,7 @@ TEST(ObjIo, RoundTripIsBitExact) {
   mesh.V(5, 1) = 0.1f;
   const std::string path = (dir / "sphere.obj").string();
   write_obj(path, mesh);
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".amt-tmp"));
   const TriMesh back = read_obj(path);
   EXPECT_TRUE(bitwise_equal(back.V, mesh.V));
   EXPECT_EQ(back.F, mesh.F);

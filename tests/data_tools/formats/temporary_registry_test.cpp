@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 TEST(TemporaryRegistry, RemovesWhatIsLiveAndNothingElse) {
   const fs::path dir = test::temp_dir("temporary_registry");
-  const std::string file = (dir / "a.glb.tmp").string(), folder = (dir / "frames.tmp").string();
+  const std::string file = (dir / "a.glb.tmp").string(), folder = (dir / "frames.amt-tmp").string();
   const std::string renamed = (dir / "b.h5.tmp").string(), kept = (dir / "c.ckpt.tmp").string();
   for (const std::string& p : {file, renamed, kept}) {
     register_temporary(p);
