@@ -20,13 +20,13 @@
 #include <sstream>
 
 #include "data_tools/builder/apparel_simulation.h"
-#include "data_tools/formats/atomic_file.h"
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/pmx_dataset.h"
+#include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/dataset_file.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/motion.h"
 
 #ifdef _OPENMP
@@ -46,7 +46,7 @@ constexpr const char* kRecordFormat = "amt-character-record";
 constexpr int kRecordVersion = 1;
 
 // Streams of derive_seed(options.seed, .): one per use, so that changing one use leaves the others alone.
-constexpr uint64_t kMotionStream = 0x6d6f74696f6eULL;     // procedural motions
+constexpr uint64_t kMotionStream = 0x6d6f74696f6eULL;      // procedural motions
 constexpr uint64_t kCharacterSplitStream = 0x63737074ULL;  // held-out characters
 constexpr uint64_t kClipSplitStream = 0x6b737074ULL;       // held-out clips
 constexpr uint64_t kCharacterStream = 0x63686172ULL;       // per-character seeds
@@ -95,11 +95,15 @@ std::string file_hash(const std::string& path, const char* what) {
 json apparel_settings(const ApparelOptions& a) {
   json kinds = json::array();
   for (const ApparelKind kind : a.kinds) kinds.push_back(apparel_kind_name(kind));
-  json settings = {{"min_pieces", a.min_pieces},         {"max_pieces", a.max_pieces},
-          {"kinds", kinds},                     {"vertex_fraction", a.vertex_fraction},
-          {"max_bodies", a.max_bodies},         {"clearance", a.clearance},
-          {"capsule_margin", a.capsule_margin}, {"stiffness_scale", a.stiffness_scale},
-          {"damping_scale", a.damping_scale}};
+  json settings = {{"min_pieces", a.min_pieces},
+                   {"max_pieces", a.max_pieces},
+                   {"kinds", kinds},
+                   {"vertex_fraction", a.vertex_fraction},
+                   {"max_bodies", a.max_bodies},
+                   {"clearance", a.clearance},
+                   {"capsule_margin", a.capsule_margin},
+                   {"stiffness_scale", a.stiffness_scale},
+                   {"damping_scale", a.damping_scale}};
   // Written only when set, so that the manifests of datasets built before the option still match.
   if (a.physics_variation > 0) settings["physics_variation"] = a.physics_variation;
   return settings;
@@ -126,9 +130,8 @@ json make_manifest(const DatasetBuildOptions& o, const DatasetPlan& plan) {
                           {"apparel", apparel_settings(o.apparel)}};
   if (!o.pmx.empty()) manifest["settings"]["pmx_metres_per_unit"] = o.pmx_metres_per_unit;
   if (!o.character_joint_map.empty()) {
-    manifest["settings"]["character_joint_map"] = {
-        {"file", fs::path(o.character_joint_map).filename().string()},
-        {"fnv1a64", file_hash(o.character_joint_map, "a joint map")}};
+    manifest["settings"]["character_joint_map"] = {{"file", fs::path(o.character_joint_map).filename().string()},
+                                                   {"fnv1a64", file_hash(o.character_joint_map, "a joint map")}};
   }
   json bvh = json::array();
   if (!o.motions.empty()) {
@@ -230,8 +233,8 @@ std::string foreign_entry(const std::string& dir) {
   std::error_code error;
   for (fs::directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
     const std::string name = it->path().filename().string();
-    const bool manifest_temporary = name.rfind("manifest.json.", 0) == 0 && name.size() > 18 &&
-                                    name.compare(name.size() - 4, 4, ".tmp") == 0;
+    const bool manifest_temporary =
+        name.rfind("manifest.json.", 0) == 0 && name.size() > 18 && name.compare(name.size() - 4, 4, ".tmp") == 0;
     if (name != "manifest.json" && !manifest_temporary) return name;
   }
   return "";
@@ -257,9 +260,11 @@ void check_or_write_manifest(const std::string& dir, const json& manifest) {
       if (difference.empty())
         difference = first_difference(manifest.value(key, none), existing.value(key, none), std::string(key) + ".");
     }
-    AMT_CHECK(difference.empty(), dir, ": the folder holds a dataset built with other settings (", difference,
+    if (difference.empty()) return;
+    // A manifest with nothing built under it (a run that failed before its first shard, for example on a PMX model
+    // fixed since) is replaced; one with shards beside it describes them and stays.
+    AMT_CHECK(foreign_entry(dir).empty(), dir, ": the folder holds a dataset built with other settings (", difference,
               "); use another --out or the same settings");
-    return;
   }
   // Several shard processes may start at once: each writes its own temporary, the renames are atomic.
   const std::string temporary = path + "." + std::to_string(::getpid()) + ".tmp";
@@ -296,9 +301,8 @@ json body_params_json(const BodyParams& p) {
 }
 
 // The fields every build record has (dataset_quality.h reads them), procedural or PMX.
-json record_fields(const PlannedCharacter& planned, json params, const TriMesh& mesh, int body_vertices,
-                   int body_faces, const std::vector<uint8_t>& apparel_mask, int bones, int apparel_bodies,
-                   json pieces) {
+json record_fields(const PlannedCharacter& planned, json params, const TriMesh& mesh, int body_vertices, int body_faces,
+                   const std::vector<uint8_t>& apparel_mask, int bones, int apparel_bodies, json pieces) {
   int apparel_vertices = 0;
   for (const uint8_t m : apparel_mask) apparel_vertices += m;
   return {{"format", kRecordFormat},
@@ -389,8 +393,8 @@ int committed_clips(const std::string& part, const DatasetPlan& plan, int c, int
   int done = 0;
   while (done < M && reader.has_clip(plan.clip_name(c, done))) ++done;
   AMT_CHECK(static_cast<int>(reader.clip_names().size()) == done && (done % per_commit == 0 || done == M), part,
-            ": expected the first clips of a batch boundary, found ", reader.clip_names().size(), " clips (",
-            done, " in order); delete the file to rebuild the character");
+            ": expected the first clips of a batch boundary, found ", reader.clip_names().size(), " clips (", done,
+            " in order)");
   return done;
 }
 
@@ -420,7 +424,8 @@ Transforms simulate_clip(const DressedCharacter& dressed, const Transforms& join
   }
   const int J = kCanonicalJointCount;
   auto pose = [&](int t) {
-    return Transforms(joints.begin() + static_cast<ptrdiff_t>(t) * J, joints.begin() + static_cast<ptrdiff_t>(t + 1) * J);
+    return Transforms(joints.begin() + static_cast<ptrdiff_t>(t) * J,
+                      joints.begin() + static_cast<ptrdiff_t>(t + 1) * J);
   };
   simulator->start(pose(0), o.settle_seconds);
   Transforms rig = simulator->skinning();
@@ -435,8 +440,8 @@ ShardSpec parse_shard(const std::string& text) {
   ShardSpec shard;
   const size_t slash = text.find('/');
   bool ok = slash != std::string::npos && slash > 0 && slash + 1 < text.size() &&
-            text.find_first_not_of("0123456789/") == std::string::npos && slash == text.rfind('/') &&
-            slash <= 6 && text.size() - slash - 1 <= 6;
+            text.find_first_not_of("0123456789/") == std::string::npos && slash == text.rfind('/') && slash <= 6 &&
+            text.size() - slash - 1 <= 6;
   if (ok) {
     shard.index = std::stoi(text.substr(0, slash));
     shard.count = std::stoi(text.substr(slash + 1));
@@ -459,11 +464,12 @@ void validate_build_options(const DatasetBuildOptions& o) {
             kMinBodyVertices, " to ", kMaxBodyVertices, " vertices per body, found ", o.vertices);
   AMT_CHECK(o.procedural >= 0 && o.procedural <= 100000, "dataset build: --procedural: expected 0 to 100000, found ",
             o.procedural);
-  AMT_CHECK(o.frames >= 2 && o.frames <= 100000, "dataset build: --frames: expected 2 to 100000 frames per clip, found ",
-            o.frames);
+  AMT_CHECK(o.frames >= 2 && o.frames <= 100000,
+            "dataset build: --frames: expected 2 to 100000 frames per clip, found ", o.frames);
   AMT_CHECK(o.motions.empty() ? o.procedural > 0 : true,
             "dataset build: expected motions: a --motions folder or --procedural > 0, found neither");
-  AMT_CHECK(std::isfinite(o.fps) && o.fps > 0 && o.fps <= 1000, "dataset build: fps: expected (0, 1000], found ", o.fps);
+  AMT_CHECK(std::isfinite(o.fps) && o.fps > 0 && o.fps <= 1000, "dataset build: fps: expected (0, 1000], found ",
+            o.fps);
   AMT_CHECK(std::isfinite(o.blend_seconds) && o.blend_seconds >= 0 && o.blend_seconds <= 60,
             "dataset build: blend seconds: expected [0, 60], found ", o.blend_seconds);
   AMT_CHECK(std::isfinite(o.settle_seconds) && o.settle_seconds >= 0 && o.settle_seconds <= 60,
@@ -578,11 +584,16 @@ BuildManifest read_build_manifest(const std::string& dir) {
   for (size_t i = 0; i < characters.size(); ++i) {
     const json& c = characters[i];
     // The name becomes a file name in DIR: it must not lead out of the folder.
-    check("characters", i, c, "name", [](const json& v) {
-      return v.is_string() && !v.get<std::string>().empty() && v.get<std::string>().find('/') == std::string::npos &&
-             v.get<std::string>() != "." && v.get<std::string>() != "..";
-    }, "a character name without '/'");
-    check("characters", i, c, "split", [](const json& v) { return v == "train" || v == "test"; }, "train or test");
+    check(
+        "characters", i, c, "name",
+        [](const json& v) {
+          return v.is_string() && !v.get<std::string>().empty() &&
+                 v.get<std::string>().find('/') == std::string::npos && v.get<std::string>() != "." &&
+                 v.get<std::string>() != "..";
+        },
+        "a character name without '/'");
+    check(
+        "characters", i, c, "split", [](const json& v) { return v == "train" || v == "test"; }, "train or test");
     check("characters", i, c, "body_seed", is_seed, "a seed");
     check("characters", i, c, "apparel_seed", is_seed, "a seed");
     result.characters.push_back({c["name"].get<std::string>(), c["body_seed"].get<uint64_t>(),
@@ -590,7 +601,8 @@ BuildManifest read_build_manifest(const std::string& dir) {
   }
   const json& clips = array("clips");
   for (size_t k = 0; k < clips.size(); ++k) {
-    check("clips", k, clips[k], "frames", [](const json& v) { return v.is_number_unsigned(); }, "a frame count");
+    check(
+        "clips", k, clips[k], "frames", [](const json& v) { return v.is_number_unsigned(); }, "a frame count");
     result.frames_per_character += clips[k]["frames"].get<int64_t>();
   }
   result.clips_per_character = static_cast<int>(clips.size());
@@ -627,8 +639,8 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
 
   std::error_code error;
   fs::create_directories(o.out, error);
-  AMT_CHECK(!error && fs::is_directory(o.out), o.out, ": --out: expected a folder that can be created, found error: ",
-            error.message());
+  AMT_CHECK(!error && fs::is_directory(o.out), o.out,
+            ": --out: expected a folder that can be created, found error: ", error.message());
   check_or_write_manifest(o.out, manifest);
 
   const int C = static_cast<int>(plan.characters.size()), M = static_cast<int>(plan.clips.size());
@@ -657,8 +669,8 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
   }
   if (o.progress) {
     *o.progress << "build: " << o.out << ": shard " << o.shard.index << "/" << o.shard.count << ": "
-                << report.characters_total << " of " << C << " characters x " << M << " clips ("
-                << frames_per_character << " frames each)\n";
+                << report.characters_total << " of " << C << " characters x " << M << " clips (" << frames_per_character
+                << " frames each)\n";
   }
 
   int clips_this_run = 0;
@@ -675,7 +687,22 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
       ++characters_done;
       continue;
     }
-    int done = fs::exists(part, error) ? committed_clips(part, plan, c, o.clips_per_commit) : 0;
+    int done = 0;
+    if (fs::exists(part, error)) {
+      // The part file is the builder's own: one that cannot be resumed (cut short, a dataset failing its checksum,
+      // clips out of order) is rebuilt from the character's first clip, never trusted and never left to block.
+      try {
+        DatasetReader(part).verify();
+        done = committed_clips(part, plan, c, o.clips_per_commit);
+      } catch (const Error& e) {
+        if (o.progress)
+          *o.progress << "build: " << e.what() << ": rebuilding " << planned.name << " from its first clip\n";
+        report.damaged.push_back(e.what());
+        fs::remove(part, error);
+        AMT_CHECK(!error, part, ": expected to remove the damaged part file, found error: ", error.message());
+        done = 0;
+      }
+    }
     report.clips_skipped += done;
     for (int k = 0; k < done; ++k) frames_to_do -= plan.clips[k].motion.num_frames();
 
@@ -783,8 +810,7 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
           // As if killed here: the writer's temporary goes, the last commit stays.
           report.interrupted = true;
           report.seconds = seconds_since(start);
-          report.mean_apparel_bodies =
-              static_cast<double>(apparel_bodies) / std::max(1, report.characters_built + 1);
+          report.mean_apparel_bodies = static_cast<double>(apparel_bodies) / std::max(1, report.characters_built + 1);
           return report;
         }
       }
@@ -797,16 +823,17 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
         const double rate = report.frames / std::max(elapsed, 1e-9);
         *o.progress << "build: character " << characters_done + 1 << "/" << report.characters_total << " ("
                     << planned.name << "), clips " << report.clips_built + report.clips_skipped << "/"
-                    << report.clips_total << ", " << std::fixed << std::setprecision(1) << rate
-                    << " frames/s, ETA " << duration_text(frames_to_do / std::max(rate, 1e-9)) << "\n"
+                    << report.clips_total << ", " << std::fixed << std::setprecision(1) << rate << " frames/s, ETA "
+                    << duration_text(frames_to_do / std::max(rate, 1e-9)) << "\n"
                     << std::defaultfloat;
       }
     }
 
     // Finish the character: its record, then the shard appears under its final name.
     t0 = Clock::now();
-    const json record = pmx ? pmx_character_record(planned, *pmx, pmx_dataset_character(*pmx, planned.name, planned.split))
-                            : character_record(planned, *dressed);
+    const json record =
+        pmx ? pmx_character_record(planned, *pmx, pmx_dataset_character(*pmx, planned.name, planned.split))
+            : character_record(planned, *dressed);
     write_file_atomically(record_path(o.out, planned.name), record.dump(2) + "\n");
     std::error_code rename_error;
     fs::rename(part, shard, rename_error);
@@ -816,9 +843,8 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
     ++characters_done;
   }
   report.seconds = seconds_since(start);
-  report.mean_apparel_bodies = report.characters_built > 0
-                                   ? static_cast<double>(apparel_bodies) / report.characters_built
-                                   : 0.0;
+  report.mean_apparel_bodies =
+      report.characters_built > 0 ? static_cast<double>(apparel_bodies) / report.characters_built : 0.0;
   return report;
 }
 
@@ -832,11 +858,11 @@ void print_build_report(const DatasetBuildReport& r, std::ostream& out) {
   };
   out << "built " << r.characters_built << " characters (" << r.characters_skipped << " already done), "
       << r.clips_built << " clips (" << r.clips_skipped << " already done), " << r.frames << " frames in " << std::fixed
-      << std::setprecision(1) << r.seconds << " s: " << (r.seconds > 0 ? r.frames / r.seconds : 0.0)
-      << " frames/s" << (r.interrupted ? " (stopped early)" : "") << "\n"
-      << "stages: body generation " << share(r.body_seconds) << ", dressing " << share(r.dress_seconds)
-      << ", motions " << share(r.motion_seconds) << ", simulation " << share(r.simulate_seconds)
-      << ", writing " << share(r.write_seconds) << "; " << std::setprecision(1) << r.mean_apparel_bodies
+      << std::setprecision(1) << r.seconds << " s: " << (r.seconds > 0 ? r.frames / r.seconds : 0.0) << " frames/s"
+      << (r.interrupted ? " (stopped early)" : "") << "\n"
+      << "stages: body generation " << share(r.body_seconds) << ", dressing " << share(r.dress_seconds) << ", motions "
+      << share(r.motion_seconds) << ", simulation " << share(r.simulate_seconds) << ", writing "
+      << share(r.write_seconds) << "; " << std::setprecision(1) << r.mean_apparel_bodies
       << " apparel bodies per character\n"
       << std::defaultfloat;
 }

@@ -1,7 +1,8 @@
 #pragma once
 // `amt dataset build`: procedural characters (data_tools/builder/body_generator.h) dressed with MMD-style apparel
-// (data_tools/builder/apparel.h), simulated under every clip of the motion library (data_tools/builder/motion_library.h) with
-// Bullet (data_tools/builder/apparel_simulation.h), written as dataset shards (data_tools/formats/dataset_file.h).
+// (data_tools/builder/apparel.h), simulated under every clip of the motion library
+// (data_tools/builder/motion_library.h) with Bullet (data_tools/builder/apparel_simulation.h), written as dataset
+// shards (data_tools/formats/dataset_file.h).
 //
 // Output folder layout (format "amt-dataset-build", version 1):
 //   DIR/manifest.json          the settings, the BVH files (names and sizes), the characters (name, seeds, split)
@@ -21,9 +22,9 @@
 // clip is held out; a test character's clips are all "test".
 //
 // Resume: a character's clips are simulated in batches of clips_per_commit; the .part file is committed (closed and
-// renamed into place, data_tools/formats/dataset_file.h) after each batch, so an interrupted run loses at most one batch,
-// and a rerun continues from the last commit. Because commits happen at the same clip indices in every run and each
-// clip's simulation starts from a rebuilt world, an interrupted and resumed build writes the same bytes as an
+// renamed into place, data_tools/formats/dataset_file.h) after each batch, so an interrupted run loses at most one
+// batch, and a rerun continues from the last commit. Because commits happen at the same clip indices in every run and
+// each clip's simulation starts from a rebuilt world, an interrupted and resumed build writes the same bytes as an
 // uninterrupted one.
 #include <cstdint>
 #include <iosfwd>
@@ -33,8 +34,8 @@
 
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/apparel_simulation.h"
-#include "data_tools/builder/physics.h"
 #include "data_tools/builder/motion_library.h"
+#include "data_tools/builder/physics.h"
 #include "data_tools/formats/pmx_import.h"
 
 namespace amt {
@@ -183,10 +184,9 @@ struct DatasetBuildReport {
   int64_t frames = 0;
   /// Wall seconds of the run and of its stages: body generation, dressing, motion retargeting and forward
   /// kinematics, simulation, writing (dataset writer, commits, records).
-  double seconds = 0, body_seconds = 0, dress_seconds = 0, motion_seconds = 0, simulate_seconds = 0,
-         write_seconds = 0;
-  /// Finished shards that failed verification (DatasetReader::verify), one message each, in
-  /// character order; this run rebuilds them.
+  double seconds = 0, body_seconds = 0, dress_seconds = 0, motion_seconds = 0, simulate_seconds = 0, write_seconds = 0;
+  /// Finished shards that failed verification (DatasetReader::verify), and part files of unfinished characters
+  /// that could not be resumed (cut short, damaged), one message each, in character order; this run rebuilds them.
   std::vector<std::string> damaged;
   /// True when stop_after_clips ended the run early.
   bool interrupted = false;

@@ -81,6 +81,37 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
              {"nowhere.pmx: --pmx: expected a PMX file or a folder of them"}}});
 }
 
+// A build that fails before its first shard (a simulation that stops on the model, say) leaves its manifest.json
+// alone in the folder; the rerun with the model fixed, into the same folder, builds without the folder being
+// deleted by hand. The failed run's folder is made here from the manifest of a build of the model before the fix.
+TEST(PmxCommands, ARerunAfterAFailedPmxBuildNeedsNoCleanUp) {
+  const fs::path dir = test::temp_dir("pmx_dataset_rerun");
+  fs::create_directories(dir / "models");
+  PmxModel before = test::pmx_humanoid();
+  before.rigid_bodies[2].mass = 3.0f;
+  write_pmx(before, (dir / "models" / "humanoid.pmx").string());
+  const std::vector<std::string> build = {"dataset",   "build", "--out",        "data", "--pmx",    "models",
+                                          "--motions", "",      "--procedural", "1",    "--frames", "4",
+                                          "--threads", "1"};
+  test::expect_success(dir, build);
+  fs::rename(dir / "data", dir / "first");
+  fs::create_directories(dir / "data");
+  fs::copy_file(dir / "first" / "manifest.json", dir / "data" / "manifest.json");
+
+  write_pmx(test::pmx_humanoid(), (dir / "models" / "humanoid.pmx").string());  // the model, fixed
+  const test::CommandResult rerun = test::expect_success(dir, build);
+  EXPECT_NE(rerun.err.find("built 1 characters (0 already done), 1 clips"), std::string::npos) << rerun.err;
+  EXPECT_TRUE(fs::is_regular_file(dir / "data" / "pmx-0000.h5"));
+  EXPECT_NE(test::read_file_bytes(dir / "data" / "manifest.json"),
+            test::read_file_bytes(dir / "first" / "manifest.json"));
+  // With a shard beside it the manifest stays: the model before the fix is refused there.
+  write_pmx(before, (dir / "models" / "humanoid.pmx").string());
+  const test::CommandResult refused = test::run_amt(dir, build);
+  EXPECT_NE(refused.status, 0);
+  EXPECT_NE(refused.err.find("data: the folder holds a dataset built with other settings"), std::string::npos)
+      << refused.err;
+}
+
 TEST(PmxCommands, AnimateWithTheModelsOwnPhysicsWritesAGlb) {
   const fs::path dir = test::temp_dir("pmx_animate_physics");
   write_pmx(test::pmx_humanoid(), (dir / "humanoid.pmx").string());

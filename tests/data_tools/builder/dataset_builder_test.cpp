@@ -1,5 +1,5 @@
-// Tests of data_tools/builder/dataset_builder.h on a tiny dataset (tests/data_tools/builder/tiny_build.h): 2 characters of about
-// 1000 vertices x 3 procedural clips of 10 frames, settling 0.1 s, committing every 2 clips.
+// Tests of data_tools/builder/dataset_builder.h on a tiny dataset (tests/data_tools/builder/tiny_build.h): 2 characters
+// of about 1000 vertices x 3 procedural clips of 10 frames, settling 0.1 s, committing every 2 clips.
 #include "data_tools/builder/dataset_builder.h"
 
 #include <gtest/gtest.h>
@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -209,6 +209,52 @@ TEST_F(DatasetBuilder, RejectsAFolderBuiltWithOtherSettings) {
   EXPECT_EQ(folder_bytes(dir), before);
 }
 
+// A manifest with nothing built beside it (a run that failed before its first shard) does not block a rerun with
+// other settings: it is replaced, and the folder then describes the new build.
+// A part file that cannot be resumed is rebuilt from the character's first clip: cut short (a full disk, a copy
+// that stopped), or with a flipped byte in a committed clip (caught by HDF5's checksums). The result equals the
+// uninterrupted build.
+TEST_F(DatasetBuilder, ADamagedOrTruncatedPartIsRebuiltNotTrusted) {
+  for (const bool truncate : {true, false}) {
+    const fs::path dir = test::temp_dir(truncate ? "dataset_builder_part_cut" : "dataset_builder_part_flip");
+    DatasetBuildOptions o = tiny_build_options(dir);
+    o.stop_after_clips = 3;  // clips 0, 1 committed in character-0000.part
+    build_dataset(o);
+    const fs::path part = dir / "character-0000.part";
+    std::string bytes = test::read_file_bytes(part);
+    ASSERT_GT(bytes.size(), 4096u);
+    if (truncate) {
+      bytes.resize(bytes.size() / 2);
+    } else {
+      // A byte in the middle of the last committed clip's data, which is where most of the file's bytes are.
+      bytes[bytes.size() * 3 / 4] = char(bytes[bytes.size() * 3 / 4] ^ 0x5a);
+    }
+    std::ofstream(part, std::ios::binary | std::ios::trunc) << bytes;
+    o.stop_after_clips = -1;
+    const DatasetBuildReport resumed = build_dataset(o);
+    ASSERT_EQ(resumed.damaged.size(), 1u) << (truncate ? "truncated" : "flipped");
+    EXPECT_NE(resumed.damaged[0].find("character-0000.part"), std::string::npos) << resumed.damaged[0];
+    EXPECT_EQ(resumed.clips_skipped, 0);
+    EXPECT_EQ(resumed.clips_built, 6);
+    EXPECT_EQ(folder_bytes(dir), folder_bytes(*reference_)) << (truncate ? "truncated" : "flipped");
+  }
+}
+
+TEST_F(DatasetBuilder, AManifestWithNothingBuiltUnderItIsReplaced) {
+  const fs::path dir = test::temp_dir("dataset_builder_manifest_only");
+  fs::create_directories(dir);
+  fs::copy_file(*reference_ / "manifest.json", dir / "manifest.json");
+  DatasetBuildOptions o = tiny_build_options(dir);
+  o.seed = 12;
+  const DatasetBuildReport report = build_dataset(o);
+  EXPECT_EQ(report.characters_built, 2);
+  EXPECT_NE(test::read_file_bytes(dir / "manifest.json").find("\"seed\": 12"), std::string::npos);
+  // Now shards lie beside it: the original settings are refused.
+  o.seed = 11;
+  EXPECT_NE(error_of([&] { build_dataset(o); }).find("built with other settings (settings.seed: 11 here, 12 in the"),
+            std::string::npos);
+}
+
 TEST_F(DatasetBuilder, ManifestReadsBackThePlan) {
   const BuildManifest manifest = read_build_manifest(reference_->string());
   ASSERT_EQ(manifest.characters.size(), 2u);
@@ -256,7 +302,8 @@ TEST_F(DatasetBuilder, DamagedFinishedShardIsFoundAndRebuilt) {
   ASSERT_NE(at, std::string::npos);
   bytes[at + 1] ^= 0x10;
   std::ofstream(shard, std::ios::binary | std::ios::trunc) << bytes;
-  EXPECT_NE(error_of([&] { DatasetReader(shard.string()).verify(); }).find("rest_joints: damaged data"), std::string::npos);
+  EXPECT_NE(error_of([&] { DatasetReader(shard.string()).verify(); }).find("rest_joints: damaged data"),
+            std::string::npos);
 
   const DatasetBuildReport r = build_dataset(tiny_build_options(dir));
   ASSERT_EQ(r.damaged.size(), 1u);
@@ -265,7 +312,8 @@ TEST_F(DatasetBuilder, DamagedFinishedShardIsFoundAndRebuilt) {
   EXPECT_EQ(r.characters_skipped, 1);
   EXPECT_EQ(r.characters_built, 1);
   EXPECT_EQ(folder_bytes(dir), folder_bytes(*reference_));
-  EXPECT_EQ(DatasetReader(shard.string()).verify(), DatasetReader((*reference_ / "character-0001.h5").string()).verify());
+  EXPECT_EQ(DatasetReader(shard.string()).verify(),
+            DatasetReader((*reference_ / "character-0001.h5").string()).verify());
 }
 
 TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) {
@@ -284,7 +332,11 @@ TEST_F(DatasetBuilder, BadInputGivesOneLineErrorsAndLeavesFinishedShardsIntact) 
       {"empty motion folder", [&](DatasetBuildOptions& o) { o.motions = empty.string(); }, "has no .bvh file"},
       {"unreadable BVH", [&](DatasetBuildOptions& o) { o.motions = broken.string(); }, "broken.bvh"},
       {"zero vertices", [](DatasetBuildOptions& o) { o.vertices = 0; }, "--vertices: expected 1000 to"},
-      {"bad shard", [](DatasetBuildOptions& o) { o.shard = {3, 2}; }, "--shard"},
+      {"bad shard",
+       [](DatasetBuildOptions& o) {
+         o.shard = {3, 2};
+       },
+       "--shard"},
       {"no characters", [](DatasetBuildOptions& o) { o.characters = 0; }, "--characters"},
   };
   for (const Case& c : cases) {
