@@ -12,9 +12,9 @@
 
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/checksum_torch.h"
-#include "data_tools/geometry/error.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/formats/temporary_registry.h"
+#include "data_tools/geometry/error.h"
 #include "models/module_options.h"
 
 namespace amt {
@@ -109,6 +109,8 @@ CheckpointInfo read_info(torch::serialize::InputArchive& archive, const std::str
   AMT_CHECK(info.step >= 0, path, ": step: expected >= 0, found ", info.step);
   info.data_fingerprint = read_string(archive, path, "data_fingerprint");
   info.joint_names = read_names(archive, path, "joint_names", "joint_names");
+  c10::IValue crc;
+  info.checksummed = archive.try_read("payload_crc32", crc);
   return info;
 }
 
@@ -309,8 +311,8 @@ CheckpointInfo load_checkpoint(const std::string& path, ModuleKind expected_kind
       blob = blob.contiguous();
       const std::string text(reinterpret_cast<const char*>(blob.data_ptr<uint8_t>()), size_t(blob.numel()));
       const uint32_t computed = crc32_update(0, text.data(), text.size());
-      AMT_CHECK(int64_t(computed) == stored.toInt(), path, ": optimizer_crc32: expected ", stored.toInt(),
-                ", found ", computed, " over the optimizer's state: the file is damaged");
+      AMT_CHECK(int64_t(computed) == stored.toInt(), path, ": optimizer_crc32: expected ", stored.toInt(), ", found ",
+                computed, " over the optimizer's state: the file is damaged");
       std::istringstream in(text);
       try {
         optimizer_archive.load_from(in);
@@ -371,16 +373,19 @@ Net load_frozen_network(const std::string& path, ModuleKind kind, CheckpointInfo
 }
 
 // The networks load_frozen_network is defined for (models/checkpoint.h).
-template ApparelSegmenter load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(
-    const std::string& path, ModuleKind kind, CheckpointInfo& info);
-template SkinningPredictor load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(
-    const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template ApparelSegmenter load_frozen_network<ApparelSegmenter, ApparelSegmenterOptions>(const std::string& path,
+                                                                                         ModuleKind kind,
+                                                                                         CheckpointInfo& info);
+template SkinningPredictor load_frozen_network<SkinningPredictor, SkinningPredictorOptions>(const std::string& path,
+                                                                                            ModuleKind kind,
+                                                                                            CheckpointInfo& info);
 template ApparelDisplacementNet load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(
     const std::string& path, ModuleKind kind, CheckpointInfo& info);
-template ApparelDynamicsNet load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(
-    const std::string& path, ModuleKind kind, CheckpointInfo& info);
-template JointRefiner load_frozen_network<JointRefiner, JointRefinerOptions>(
-    const std::string& path, ModuleKind kind, CheckpointInfo& info);
+template ApparelDynamicsNet load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(const std::string& path,
+                                                                                            ModuleKind kind,
+                                                                                            CheckpointInfo& info);
+template JointRefiner load_frozen_network<JointRefiner, JointRefinerOptions>(const std::string& path, ModuleKind kind,
+                                                                             CheckpointInfo& info);
 
 void check_checkpoint_skeleton(const std::string& path, const CheckpointInfo& info,
                                const std::vector<std::string>& dataset_joint_names) {

@@ -1,7 +1,7 @@
 #pragma once
 // Training checkpoints: one self-describing file per trained module, format "amt-checkpoint",
 // version 1, written through torch::serialize::OutputArchive (a TorchScript zip archive) to
-// "<path>.tmp" and renamed onto the target, so an interrupted save never replaces a good file.
+// "<path>.amt-tmp" and renamed onto the target, so an interrupted save never replaces a good file.
 //
 // Keys of the archive:
 //   format "amt-checkpoint", version 1, kind ("segmenter" | "skinning" | "apparel" | "refiner"),
@@ -58,12 +58,15 @@ struct CheckpointInfo {
   std::vector<std::string> joint_names;
   /// data_fingerprint() of the shards the module was trained on.
   std::string data_fingerprint;
+  /// Whether the file carries payload_crc32 (the CRC-32 of the options and tensors, checked on every load). Files
+  /// written before amt stored it load unverified; save_checkpoint always writes it.
+  bool checksummed = false;
 };
 
 // === Save and load
 
 /// Writes `info`, the parameters and buffers of `model` and, when not null, the state of `optimizer`
-/// to `path` (through "<path>.tmp", then renamed). Throws amt::Error when the file cannot be written.
+/// to `path` (through "<path>.amt-tmp", then renamed). Throws amt::Error when the file cannot be written.
 /// `training_parameters`, when not null, are the parameters the optimizer works on where they differ
 /// from the model's (a run with a moving average of its parameters stores the average as the model and
 /// these for --resume): key training_parameters/ (t0, t1, ... in model->parameters() order) with its own
@@ -72,8 +75,8 @@ void save_checkpoint(const std::string& path, const CheckpointInfo& info, const 
                      const torch::optim::Optimizer* optimizer,
                      const std::vector<at::Tensor>* training_parameters = nullptr);
 
-/// Saves `archive` to `path` through "<path>.tmp", renamed when complete (the parent folder is created).
-/// Throws amt::Error "<path>.tmp: cannot write the <what> (reason)" and removes the temporary on failure.
+/// Saves `archive` to `path` through "<path>.amt-tmp", renamed when complete (the parent folder is created).
+/// Throws amt::Error "<path>.amt-tmp: cannot write the <what> (reason)" and removes the temporary on failure.
 void save_archive_atomically(torch::serialize::OutputArchive& archive, const std::string& path,
                              const std::string& what);
 

@@ -21,6 +21,7 @@
 #include "data_tools/geometry/retarget.h"
 #include "data_tools/geometry/skeleton.h"
 #include "infer/runtime_torch.h"
+#include "models/checkpoint.h"
 #include "models/pipeline.h"
 #include "tests/test_support.h"
 
@@ -51,6 +52,18 @@ void expect_weights(const at::Tensor& W, int64_t rows, int64_t J, const std::str
   expect_finite(W, what);
   EXPECT_TRUE((W >= 0).all().item<bool>()) << what;
   EXPECT_LT((W.sum(-1) - 1).abs().max().item<float>(), 1e-4f) << what;
+}
+
+// Every shipped checkpoint carries payload_crc32, so a flipped bit in a shipped file is an error on load instead of
+// a silently different animation.
+TEST(PretrainedModel, EveryShippedCheckpointCarriesItsChecksum) {
+  int count = 0;
+  for (const auto& e : fs::directory_iterator(kPretrained)) {
+    if (e.path().extension() != ".ckpt") continue;
+    EXPECT_TRUE(read_checkpoint_info(e.path().string()).checksummed) << e.path().filename().string();
+    ++count;
+  }
+  EXPECT_GE(count, 4);
 }
 
 TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
@@ -128,7 +141,8 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
       if (name == kApparelCheckpoint || name == kApparelVertices) continue;
       fs::copy_file(kPretrained / name, per_vertex / name, fs::copy_options::overwrite_existing);
     }
-    fs::copy_file(kPretrained / kApparelVertices, per_vertex / kApparelCheckpoint, fs::copy_options::overwrite_existing);
+    fs::copy_file(kPretrained / kApparelVertices, per_vertex / kApparelCheckpoint,
+                  fs::copy_options::overwrite_existing);
     const ModelBundle vertices = load_model_bundle(per_vertex.string());
     ASSERT_TRUE(vertices.local_apparel());
     EXPECT_EQ(vertices.apparel_dynamics->options.handle_spacing, 0.0);
