@@ -3,15 +3,15 @@
 #include <omp.h>
 #include <sys/resource.h>
 
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <functional>
 #include <memory>
 #include <random>
-#include <unistd.h>
-#include <cmath>
 
 #include <ATen/ATen.h>
 #include <c10/core/InferenceMode.h>
@@ -56,16 +56,17 @@ struct BenchOptions {
   std::vector<std::string> suites = {"lbs", "geodesic"};
   std::vector<int> runtime_sizes = {5000, 20000, 50000};
   std::vector<int> runtime_threads = {1, 2};
-  std::string model;  // empty: the repository's models/pretrained when found (app/repository.h)
-  bool open_parts = false;  // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
-  bool artist_style = false;  // runtime suite: the characters remade artist-style (artist_style.h)
-  bool segmenter_mask = false;  // runtime suite: the segmenter's apparel mask instead of the dressed character's
+  int cloth_vertices = 12000;      // cloth suite: vertices of each generated body
+  std::string model;               // empty: the repository's models/pretrained when found (app/repository.h)
+  bool open_parts = false;         // runtime suite: the characters cut into open, overlapping parts (open_parts.h)
+  bool artist_style = false;       // runtime suite: the characters remade artist-style (artist_style.h)
+  bool segmenter_mask = false;     // runtime suite: the segmenter's apparel mask instead of the dressed character's
   bool reference_apparel = false;  // runtime suite: the global apparel form's network timed beside the model's
   bool refine = false;             // runtime suite: the refiner after the apparel module (amt animate --refiner)
   float strain_limit = kDefaultStrainLimit;  // runtime suite: amt animate --strain-limit
-  std::vector<std::string> data;  // segmenter suite: dataset shards or folders
-  std::string segmenter;          // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
-  std::string split = "test";     // segmenter suite: the characters scored
+  std::vector<std::string> data;             // segmenter suite: dataset shards or folders
+  std::string segmenter;                     // segmenter suite: checkpoint (empty: <model>/segmenter.ckpt)
+  std::string split = "test";                // segmenter suite: the characters scored
 };
 
 // The calling thread's CPU time, seconds.
@@ -139,8 +140,8 @@ void bench_geodesic(const BenchOptions& o) {
   const int repeats = std::max(3, o.repeats / 6);
   const double seconds = median_seconds(repeats, [&] { G = geodesic_distances(mesh.V, mesh.F, s.rest_joints); });
   AMT_CHECK(G.allFinite(), "bench: geodesic: expected finite distances");
-  std::printf("geodesic  %6d vertices, %d joints, 22 parts: median %.1f ms per matrix (%d runs)\n",
-              mesh.num_vertices(), s.num_joints(), 1e3 * seconds, repeats);
+  std::printf("geodesic  %6d vertices, %d joints, 22 parts: median %.1f ms per matrix (%d runs)\n", mesh.num_vertices(),
+              s.num_joints(), 1e3 * seconds, repeats);
 }
 
 // Training speed of the skinning predictor: the fixed overfit run of models/skinning_overfit.h (a 22-vertex
@@ -150,9 +151,10 @@ void bench_skinning(const BenchOptions& o) {
   SkinningOverfit run;
   const int repeats = std::max(1, o.repeats / 10);
   const double seconds = median_seconds(repeats, [&] { run = overfit_skinning_on_a_bar(500); });
-  std::printf("skinning  overfit of f_s on a 22-vertex bar through LBS, %d AdamW steps, 1 thread: median %.2f s "
-              "(%.2f ms per step, %d runs), L1 %.5f -> %.5f\n",
-              run.steps, seconds, 1e3 * seconds / run.steps, repeats, run.initial_loss, run.final_loss);
+  std::printf(
+      "skinning  overfit of f_s on a 22-vertex bar through LBS, %d AdamW steps, 1 thread: median %.2f s "
+      "(%.2f ms per step, %d runs), L1 %.5f -> %.5f\n",
+      run.steps, seconds, 1e3 * seconds / run.steps, repeats, run.initial_loss, run.final_loss);
 }
 
 // The shipped networks when `dir` holds them, else freshly initialised ones of the default options
@@ -173,7 +175,7 @@ ModelBundle bench_bundle(const std::string& given, std::string& what) {
   b.apparel_dynamics->freeze_normalizers();  // identity statistics: the cost is the same
   b.refiner = JointRefiner(JointRefinerOptions{});
   for (torch::nn::Module* m : std::initializer_list<torch::nn::Module*>{b.segmenter.get(), b.skinning.get(),
-                                                                         b.apparel_dynamics.get(), b.refiner.get()}) {
+                                                                        b.apparel_dynamics.get(), b.refiner.get()}) {
     m->eval();
     for (auto& p : m->parameters()) p.set_requires_grad(false);
   }
@@ -208,9 +210,10 @@ void bench_runtime(const BenchOptions& o) {
         N, r.apparel_vertices, 100.0 * r.apparel_vertices / N, r.true_apparel_vertices,
         100.0 * r.true_apparel_vertices / N, r.faces, r.character.c_str(), r.bind_seconds, o.runtime_threads.back());
     if (r.handles > 0)
-      std::printf("runtime   %6d vertices: the apparel module moves %d handles (%.1f apparel vertices each), up to %d "
-                  "graph neighbours each\n",
-                  N, r.handles, double(r.apparel_vertices) / r.handles, r.handle_neighbors - 1);
+      std::printf(
+          "runtime   %6d vertices: the apparel module moves %d handles (%.1f apparel vertices each), up to %d "
+          "graph neighbours each\n",
+          N, r.handles, double(r.apparel_vertices) / r.handles, r.handle_neighbors - 1);
     for (const RuntimeThreadFigures& t : r.per_thread) {
       std::printf(
           "runtime   %6d vertices, %d thread%s: per frame median %.2f ms, p95 %.2f ms (%.0f fps); "
@@ -231,26 +234,27 @@ void bench_runtime(const BenchOptions& o) {
   }
 }
 
-
 // Cloth retargeting (issue 13): two generated bodies dressed with one garment template (about 6k apparel
 // vertices), both walking; registration of both sides, then the retargeting of a frame: steps 3-6, 3.1 and
-// the edge relaxation alone, and with the push-out of 3.2 (inside tests and resolution), on one thread. The source apparel is the skinned apparel plus a
-// swinging offset (a stand-in for a simulation: the cost does not depend on where the apparel is).
+// the edge relaxation alone, and with the push-out of 3.2 (inside tests and resolution), on one thread. The source
+// apparel is the skinned apparel plus a swinging offset (a stand-in for a simulation: the cost does not depend on where
+// the apparel is).
 void bench_cloth(const BenchOptions& o) {
   set_thread_count(1);
   ApparelOptions dress;
   dress.vertex_fraction = 0.35f;
   dress.min_pieces = 2;
   dress.max_pieces = 3;
-  const GeneratedBody body_a = generate_body(sample_body_params(uint64_t(7)), 12000);
+  const GeneratedBody body_a = generate_body(sample_body_params(uint64_t(7)), o.cloth_vertices);
   const DressedCharacter a = dress_character(body_a, 7, dress);
   dress.topology = a.topology;
-  const GeneratedBody body_b = generate_body(sample_body_params(uint64_t(8)), 12000);
+  const GeneratedBody body_b = generate_body(sample_body_params(uint64_t(8)), o.cloth_vertices);
   const DressedCharacter b = dress_character(body_b, 7, dress);
   const ClothCharacter source{"bench:a", a.mesh, a.apparel_mask}, target{"bench:b", b.mesh, b.apparel_mask};
   const int repeats = std::max(3, o.repeats / 6);
   std::unique_ptr<ClothRetargeter> resolving;
-  const double registration = median_seconds(repeats, [&] { resolving = std::make_unique<ClothRetargeter>(source, target); });
+  const double registration =
+      median_seconds(repeats, [&] { resolving = std::make_unique<ClothRetargeter>(source, target); });
   ClothRetargetOptions core;  // steps 3-6, 3.1 and the relaxation: no winding-number queries
   core.resolve = false;
   core.measure = false;
@@ -260,9 +264,12 @@ void bench_cloth(const BenchOptions& o) {
   std::vector<MatrixX3f> source_frames, target_frames;
   for (int t = 0; t < walk_a.num_frames(); ++t) {
     MatrixX3f Va, Vb;
-    linear_blend_skinning(a.mesh.V, a.body_weights, skinning_matrices(body_a.skeleton, forward_kinematics(body_a.skeleton, walk_a, t)), Va);
-    linear_blend_skinning(b.mesh.V, b.body_weights, skinning_matrices(body_b.skeleton, forward_kinematics(body_b.skeleton, walk_b, t)), Vb);
-    for (const int32_t i : resolving->source_apparel()) Va(i, 0) += 0.02f * std::sin(0.3f * float(t) + 0.01f * float(i));
+    linear_blend_skinning(a.mesh.V, a.body_weights,
+                          skinning_matrices(body_a.skeleton, forward_kinematics(body_a.skeleton, walk_a, t)), Va);
+    linear_blend_skinning(b.mesh.V, b.body_weights,
+                          skinning_matrices(body_b.skeleton, forward_kinematics(body_b.skeleton, walk_b, t)), Vb);
+    for (const int32_t i : resolving->source_apparel())
+      Va(i, 0) += 0.02f * std::sin(0.3f * float(t) + 0.01f * float(i));
     source_frames.push_back(std::move(Va));
     target_frames.push_back(std::move(Vb));
   }
@@ -279,13 +286,15 @@ void bench_cloth(const BenchOptions& o) {
       if (resolve) after.inside += report.after.inside, after.total += report.after.total;
       t = (t + 1) % frames;
     });
-    std::printf("cloth     %6d apparel vertices on %d + %d body vertices, 1 thread: retargeting %s median %.3f ms per "
-                "frame (thread CPU time %.3f ms)\n",
-                r.num_apparel(), body_a.mesh.num_vertices(), body_b.mesh.num_vertices(),
-                resolve ? "with push-out (3.2)" : "steps 3-6, 3.1, relaxation", 1e3 * times.wall, 1e3 * times.cpu);
+    std::printf(
+        "cloth     %6d apparel vertices on %d + %d body vertices, 1 thread: retargeting %s median %.3f ms per "
+        "frame (thread CPU time %.3f ms)\n",
+        r.num_apparel(), body_a.mesh.num_vertices(), body_b.mesh.num_vertices(),
+        resolve ? "with push-out (3.2)" : "steps 3-6, 3.1, relaxation", 1e3 * times.wall, 1e3 * times.cpu);
   }
-  std::printf("cloth     registration of both sides: median %.1f ms; penetration %.2f %% before, %.2f %% after push-out\n",
-              1e3 * registration, 100.0 * before.share(), 100.0 * after.share());
+  std::printf(
+      "cloth     registration of both sides: median %.1f ms; penetration %.2f %% before, %.2f %% after push-out\n",
+      1e3 * registration, 100.0 * before.share(), 100.0 * after.share());
 }
 
 // The segmenter on the characters of one split of a dataset, as built and remade (issue 17, item 4):
@@ -297,21 +306,25 @@ void bench_cloth(const BenchOptions& o) {
 void bench_segmenter(const BenchOptions& o) {
   AMT_CHECK(!o.data.empty(), "bench --suite segmenter: --data: expected dataset shards or folders, found none");
   const std::string dir = !o.model.empty() ? o.model : find_repository_folder("models/pretrained");
-  const std::string checkpoint = !o.segmenter.empty() ? o.segmenter : (std::filesystem::path(dir) / kSegmenterCheckpoint).string();
+  const std::string checkpoint =
+      !o.segmenter.empty() ? o.segmenter : (std::filesystem::path(dir) / kSegmenterCheckpoint).string();
   const ModelBundle bundle = load_segmenter_bundle(checkpoint);
-  std::printf("segmenter %s (inputs \"%s\"); %s characters of %zu dataset input%s; IoU of the mask p > 0.5; "
-              "called = share of vertices called apparel (true share in brackets)\n",
-              checkpoint.c_str(), bundle.segmenter->options.inputs.c_str(), o.split.c_str(), o.data.size(),
-              o.data.size() > 1 ? "s" : "");
+  std::printf(
+      "segmenter %s (inputs \"%s\"); %s characters of %zu dataset input%s; IoU of the mask p > 0.5; "
+      "called = share of vertices called apparel (true share in brackets)\n",
+      checkpoint.c_str(), bundle.segmenter->options.inputs.c_str(), o.split.c_str(), o.data.size(),
+      o.data.size() > 1 ? "s" : "");
   struct Score {
     double iou = 0, called = 0, truth = 0;
   };
   const auto score = [&](const SegmenterExample& e) {
     const at::Tensor p = apparel_probabilities(bundle, e.mesh.V, e.mesh.F, e.skeleton.rest_joints).gt(0.5);
     const at::Tensor gt =
-        at::from_blob(const_cast<uint8_t*>(e.apparel_mask.data()), {int64_t(e.apparel_mask.size())}, at::kByte).to(at::kBool);
+        at::from_blob(const_cast<uint8_t*>(e.apparel_mask.data()), {int64_t(e.apparel_mask.size())}, at::kByte)
+            .to(at::kBool);
     const double inter = p.logical_and(gt).sum().item<double>(), uni = p.logical_or(gt).sum().item<double>();
-    return Score{uni > 0 ? inter / uni : 1.0, p.to(at::kDouble).mean().item<double>(), gt.to(at::kDouble).mean().item<double>()};
+    return Score{uni > 0 ? inter / uni : 1.0, p.to(at::kDouble).mean().item<double>(),
+                 gt.to(at::kDouble).mean().item<double>()};
   };
   const char* kinds[4] = {"as built", "bare body", "open parts", "bare open parts"};
   Score sum[4];
@@ -328,8 +341,11 @@ void bench_segmenter(const BenchOptions& o) {
                   open.mesh.num_vertices());
       for (int k = 0; k < 4; ++k) {
         const bool bare = k == 1 || k == 3;
-        if (bare) std::printf("  %s called %.1f %%;", kinds[k], 100 * s[k].called);
-        else std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], s[k].iou, 100 * s[k].called, 100 * s[k].truth);
+        if (bare)
+          std::printf("  %s called %.1f %%;", kinds[k], 100 * s[k].called);
+        else
+          std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], s[k].iou, 100 * s[k].called,
+                      100 * s[k].truth);
         sum[k].iou += s[k].iou, sum[k].called += s[k].called, sum[k].truth += s[k].truth;
       }
       std::printf("\n");
@@ -341,9 +357,11 @@ void bench_segmenter(const BenchOptions& o) {
   std::printf("segmenter mean over %d:", count);
   for (int k = 0; k < 4; ++k) {
     const bool bare = k == 1 || k == 3;
-    if (bare) std::printf("  %s called %.1f %%;", kinds[k], 100 * sum[k].called / count);
-    else std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], sum[k].iou / count, 100 * sum[k].called / count,
-                     100 * sum[k].truth / count);
+    if (bare)
+      std::printf("  %s called %.1f %%;", kinds[k], 100 * sum[k].called / count);
+    else
+      std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], sum[k].iou / count, 100 * sum[k].called / count,
+                  100 * sum[k].truth / count);
   }
   std::printf("\n");
 }
@@ -356,9 +374,13 @@ void add_bench_command(CLI::App& app) {
   bench->add_option("--vertices", options->vertices, "Vertices of the generated stand-in character")
       ->check(CLI::Range(100, 5000000))
       ->capture_default_str();
-  bench->add_option("--repeats", options->repeats, "Timed repeats per figure")->check(CLI::Range(1, 100000))->capture_default_str();
-  bench->add_option("--suite", options->suites, "Suites to run: lbs, geodesic, runtime, cloth (retargeting), skinning (training steps), segmenter "
-                    "(IoU and share called apparel on a dataset's characters, bare bodies and open-parts versions)")
+  bench->add_option("--repeats", options->repeats, "Timed repeats per figure")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  bench
+      ->add_option("--suite", options->suites,
+                   "Suites to run: lbs, geodesic, runtime, cloth (retargeting), skinning (training steps), segmenter "
+                   "(IoU and share called apparel on a dataset's characters, bare bodies and open-parts versions)")
       ->check(CLI::IsMember({"lbs", "geodesic", "runtime", "cloth", "skinning", "segmenter"}))
       ->capture_default_str();
   bench->add_option("--runtime-sizes", options->runtime_sizes, "Vertex counts of the runtime suite's characters")
@@ -366,6 +388,9 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str();
   bench->add_option("--runtime-threads", options->runtime_threads, "Thread counts of the runtime suite")
       ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  bench->add_option("--cloth-vertices", options->cloth_vertices, "Vertices of each body of the cloth suite")
+      ->check(CLI::Range(500, 200000))
       ->capture_default_str();
   bench->add_option("--model", options->model,
                     "Model folder of the runtime suite (fresh networks when absent). " +
@@ -382,8 +407,9 @@ void add_bench_command(CLI::App& app) {
   bench->add_flag("--refiner", options->refine,
                   "Runtime suite: also run the model's joint refiner, as amt animate --refiner (off by default, as "
                   "in amt animate)");
-  bench->add_option("--strain-limit", options->strain_limit,
-                    "Runtime suite: the learned apparel's stretch limit, as amt animate --strain-limit (0: off)")
+  bench
+      ->add_option("--strain-limit", options->strain_limit,
+                   "Runtime suite: the learned apparel's stretch limit, as amt animate --strain-limit (0: off)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
       ->capture_default_str();
   bench->add_flag("--reference-apparel", options->reference_apparel,
@@ -397,7 +423,8 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str();
   add_threads_option(*bench);
   bench->callback([options] {
-    const bool segmenter = std::find(options->suites.begin(), options->suites.end(), "segmenter") != options->suites.end();
+    const bool segmenter =
+        std::find(options->suites.begin(), options->suites.end(), "segmenter") != options->suites.end();
     AMT_CHECK(!segmenter || !options->data.empty(),
               "bench --suite segmenter: --data: expected dataset shards or folders, found none");
     std::printf("amt bench: %d threads\n", omp_get_max_threads());

@@ -11,8 +11,8 @@
 // page's. Each page's report is printed (files, frames, vertices, apparel, errors, PMD_a readout).
 //
 // Exit status: 0 when every check passes, 1 when one fails (the reason on stderr), 77 when Chromium
-// cannot start (the test is then skipped, with the reason). The browser is AMT_CHROMIUM or
-// /usr/bin/chromium.
+// cannot start (the test is then skipped, with the reason, or fails when AMT_REQUIRE_BROWSER is set).
+// The browser is AMT_CHROMIUM or /usr/bin/chromium.
 import { chromium } from 'playwright-core';
 import { writeFile } from 'node:fs/promises';
 

@@ -33,5 +33,34 @@ TEST(BenchCommand, TinyRunsPrintTheFiguresOfEachSuite) {
   EXPECT_TRUE(test::snapshot(dir).empty());  // a benchmark writes nothing where it runs
 }
 
+// The runtime, cloth and segmenter suites on tiny inputs: each prints its figures, finite and in range.
+TEST(BenchCommand, TinyRunsOfTheRuntimeClothAndSegmenterSuites) {
+  const auto dir = test::temp_dir("bench_suites");
+  const test::CommandResult runtime = test::expect_success(
+      dir, {"bench", "--suite", "runtime", "--runtime-sizes", "2000", "--runtime-threads", "1", "--repeats", "2"});
+  EXPECT_NE(runtime.out.find("runtime   "), std::string::npos) << runtime.out;
+  const size_t frame = runtime.out.find(" thread: per frame median ");
+  ASSERT_NE(frame, std::string::npos) << runtime.out;
+  const double median_ms = std::stod(runtime.out.substr(frame + std::string(" thread: per frame median ").size()));
+  EXPECT_GT(median_ms, 0.0);
+  EXPECT_LT(median_ms, 10000.0);
+  EXPECT_EQ(runtime.out.find("nan"), std::string::npos) << runtime.out;
+
+  const test::CommandResult cloth =
+      test::expect_success(dir, {"bench", "--suite", "cloth", "--cloth-vertices", "1500", "--repeats", "3"});
+  EXPECT_NE(cloth.out.find("retargeting steps 3-6, 3.1, relaxation median "), std::string::npos) << cloth.out;
+  EXPECT_NE(cloth.out.find("retargeting with push-out (3.2) median "), std::string::npos) << cloth.out;
+  EXPECT_NE(cloth.out.find("cloth     registration of both sides: median "), std::string::npos) << cloth.out;
+  EXPECT_EQ(cloth.out.find("nan"), std::string::npos) << cloth.out;
+
+  const auto data = test::temp_dir("bench_suites_data");
+  const std::string folder = (data / test::build_tiny_dataset(data)).string();
+  const test::CommandResult segmenter =
+      test::expect_success(dir, {"bench", "--suite", "segmenter", "--data", folder, "--split", "train"});
+  EXPECT_NE(segmenter.out.find("segmenter "), std::string::npos) << segmenter.out;
+  EXPECT_NE(segmenter.out.find("vertices; open parts"), std::string::npos) << segmenter.out;
+  EXPECT_TRUE(test::snapshot(dir).empty());
+}
+
 }  // namespace
 }  // namespace amt

@@ -5,8 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include "data_tools/formats/dataset_file.h"
+#include <iostream>
+
 #include "data_tools/builder/garment_pairs.h"
+#include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/obj_io.h"
 #include "tests/data_tools/builder/tiny_build.h"
 #include "tests/test_support.h"
@@ -49,7 +51,9 @@ RetargetClothOptions pair_options(const fs::path& out) {
 
 TEST(RetargetCloth, CarriesTheApparelOfOneBodyOntoTheOtherAndWritesADatasetFile) {
   const fs::path dir = test::temp_dir("retarget_cloth_h5");
-  const RetargetClothSummary s = retarget_cloth(pair_options(dir / "b.h5"));
+  RetargetClothOptions o = pair_options(dir / "b.h5");
+  o.target_motion.spec = pair_set() + ":" + clip_of("pair-00-b");  // the motion the pair set simulated b under
+  const RetargetClothSummary s = retarget_cloth(o);
   EXPECT_EQ(s.frames, 6);
   EXPECT_GT(s.apparel_vertices, 0);
   EXPECT_LE(s.after.inside, s.before.inside);
@@ -57,7 +61,38 @@ TEST(RetargetCloth, CarriesTheApparelOfOneBodyOntoTheOtherAndWritesADatasetFile)
   ASSERT_EQ(written.clip_names().size(), 1u);
   const MatrixX3f V = written.read_vertices(written.clip_names()[0], 0, 6);
   EXPECT_TRUE(V.allFinite());
-  EXPECT_FALSE(fs::exists(dir / "b.h5.tmp"));
+  EXPECT_FALSE(fs::exists(dir / "b.h5.amt-tmp"));
+
+  // Checked against the pair set's own simulation of the target body under the same motion: the retargeted
+  // apparel lies near it, far nearer than the target's rest apparel (what a job that moved nothing would write),
+  // and the body is the target's, posed.
+  const DatasetReader pairs(pair_set());
+  const CharacterData b = pairs.read_character("pair-00-b");
+  const int N = b.mesh.num_vertices();
+  ASSERT_EQ(V.rows(), 6 * N);
+  const MatrixX3f truth = pairs.read_vertices(clip_of("pair-00-b"), 0, 6);
+  double retargeted = 0, rest = 0, body = 0;
+  int apparel = 0, bare = 0;
+  for (int t = 0; t < 6; ++t) {
+    for (int i = 0; i < N; ++i) {
+      const Eigen::Index row = Eigen::Index(t) * N + i;
+      if (b.apparel_mask[size_t(i)]) {
+        retargeted += (V.row(row) - truth.row(row)).norm();
+        rest += (b.mesh.V.row(i) - truth.row(row)).norm();
+        ++apparel;
+      } else {
+        body += (V.row(row) - truth.row(row)).norm();
+        ++bare;
+      }
+    }
+  }
+  ASSERT_GT(apparel, 0);
+  retargeted /= apparel, rest /= apparel, body /= std::max(bare, 1);
+  std::cout << "apparel " << 100 * retargeted << " cm from the target's own simulation (rest apparel: " << 100 * rest
+            << " cm); body " << 100 * body << " cm\n";
+  EXPECT_LT(retargeted, 0.5 * rest);
+  EXPECT_LT(retargeted, 0.05);  // metres: within centimetres of the simulation
+  EXPECT_LT(body, 1e-4);
 }
 
 TEST(RetargetCloth, ReadsAnObjSequenceAndNamesAMissingFrame) {
@@ -67,7 +102,8 @@ TEST(RetargetCloth, ReadsAnObjSequenceAndNamesAMissingFrame) {
   const std::string clip = clip_of("pair-00-a");
   std::vector<MatrixX3f> frames;
   const MatrixX3f all = reader.read_vertices(clip, 0, 6);
-  for (int t = 0; t < 6; ++t) frames.push_back(all.middleRows(Eigen::Index(t) * a.mesh.num_vertices(), a.mesh.num_vertices()));
+  for (int t = 0; t < 6; ++t)
+    frames.push_back(all.middleRows(Eigen::Index(t) * a.mesh.num_vertices(), a.mesh.num_vertices()));
   write_obj_sequence((dir / "source").string(), a.mesh.F, frames);
   RetargetClothOptions o = pair_options(dir / "b.glb");
   o.source = (dir / "source").string();

@@ -114,9 +114,9 @@ TEST(ApparelDisplacementNet, RolloutFeedsPredictionsBackAndIsDifferentiable) {
   const at::Tensor history = at::stack({initial[2], out[0], out[1]});
   EXPECT_LT((out[2] - net->step(history, motion[2], nbr, anchors[2])).abs().max().item<float>(), 1e-5f);
   // Batched rollout (B, T, N_a, 3).
-  const at::Tensor batch = net->rollout(initial.unsqueeze(0).expand({2, 3, N, 3}),
-                                        motion.unsqueeze(0).expand({2, T, J, 3, 4}), nbr,
-                                        anchors.unsqueeze(0).expand({2, T, N, 3}));
+  const at::Tensor batch =
+      net->rollout(initial.unsqueeze(0).expand({2, 3, N, 3}), motion.unsqueeze(0).expand({2, T, J, 3, 4}), nbr,
+                   anchors.unsqueeze(0).expand({2, T, N, 3}));
   ASSERT_EQ(batch.sizes(), (at::IntArrayRef{2, T, N, 3}));
   EXPECT_LT((batch[1] - out).abs().max().item<float>(), 1e-5f);
   // Gradients reach every parameter through time.
@@ -142,18 +142,45 @@ TEST(ApparelDisplacementNet, FactorizedAndPerEdgeNetworksAgree) {
   const at::Tensor history = at::randn({3, 20, 3});
   const at::Tensor T = random_transforms(1, 5)[0];
   const at::Tensor S = at::randn({20, 3});
-  EXPECT_LT((fast->forward(history, T, nbr, S) - naive->forward(history, T, nbr, S)).abs().max().item<float>(),
-            1e-5f);
+  EXPECT_LT((fast->forward(history, T, nbr, S) - naive->forward(history, T, nbr, S)).abs().max().item<float>(), 1e-5f);
 }
 
-// ΔA (N_a, 3) by eq. 11-13 as written, from the network's parameters and PyTorch ops: H = features()
-// with the motion code broadcast to every vertex, each EdgeConv block evaluated per edge on
-// [h_i, h_j - h_i], the decoder, ΔA = output_scale * decoder + S - A^(t-1).
+// H of eq. 12 from its definition, from the network's parameters and PyTorch ops (not features()): per vertex
+// A^(t-1) relative to the root joint, velocity_scale * (Ȧ, Ä, S - A^(t-1)) by finite differences of the history,
+// then the motion code f_t(T^(t)), the motion encoder (every layer activated) on the root-relative transforms
+// flattened row-major, broadcast to every vertex. (1, N, 12 + K).
+at::Tensor features_as_written(ApparelDisplacementNet& net, const at::Tensor& history, const at::Tensor& T,
+                               const at::Tensor& S) {
+  const auto params = net->named_parameters();
+  const ApparelDisplacementOptions& o = net->options;
+  EXPECT_TRUE(o.root_relative);
+  const at::Tensor root = T[0].select(1, 3);  // (3) the root joint's position
+  const at::Tensor a3 = history[0], a2 = history[1], a1 = history[2];
+  const int64_t N = a1.size(0);
+  at::Tensor motion = T.clone();
+  motion.select(2, 3).sub_(root);
+  at::Tensor code = motion.reshape({1, -1});
+  for (size_t l = 0; l < o.motion_widths.size() + 1; ++l) {
+    const std::string linear = "motion_encoder.linear" + std::to_string(l) + ".";
+    code = at::leaky_relu(at::linear(code, params[linear + "weight"], params[linear + "bias"]), o.negative_slope);
+  }
+  EXPECT_EQ(code.size(1), o.motion_code);
+  const double v = o.velocity_scale;
+  return at::cat({a1 - root, v * (a1 - a2), v * ((a1 - a2) - (a2 - a3)), v * (S - a1), code.expand({N, o.motion_code})},
+                 1)
+      .unsqueeze(0);
+}
+
+// ΔA (N_a, 3) by eq. 11-13 as written, from the network's parameters and PyTorch ops: H by
+// features_as_written, each EdgeConv block evaluated per edge on [h_i, h_j - h_i], the decoder,
+// ΔA = output_scale * decoder + S - A^(t-1).
 at::Tensor delta_as_written(ApparelDisplacementNet& net, const at::Tensor& history, const at::Tensor& T,
                             const at::Tensor& nbr, const at::Tensor& S) {
   const auto params = net->named_parameters();
   const ApparelDisplacementOptions& o = net->options;
-  at::Tensor x = net->features(history.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0));  // (1, N, 12 + K)
+  at::Tensor x = features_as_written(net, history, T, S);  // (1, N, 12 + K)
+  const at::Tensor network_features = net->features(history.unsqueeze(0), T.unsqueeze(0), S.unsqueeze(0));
+  EXPECT_LT((x - network_features).abs().max().item<double>(), 1e-5 * (1.0 + x.abs().max().item<double>()));
   const int64_t N = x.size(1), K = nbr.size(1);
   for (size_t l = 0; l < o.edge_widths.size(); ++l) {
     const std::string edge = "edge_conv" + std::to_string(l) + ".edge.";

@@ -53,6 +53,26 @@ TEST(JointRefiner, RefinesWithNonZeroWeightsAndPassesGradients) {
   const RefinerOutput out = net->forward(tiled, rest, mask);
   EXPECT_TRUE(at::allclose(out.V_hat, tiled + out.delta));  // eq. (16)
   EXPECT_GT(out.delta.abs().max().item<float>(), 0.0f);
+  // ΔV of single vertices computed by hand from the parameters: the per-vertex MLP (ReLU between its layers) on
+  // [(x_i - mean x) / h, (r_i - mean r) / h, p_i], h the rest mesh's height (Y extent), times output_scale.
+  {
+    const at::NoGradGuard no_grad;
+    const at::Tensor x = tiled.detach();
+    const float h = (rest.select(1, 1).max() - rest.select(1, 1).min()).item<float>();
+    const std::vector<at::Tensor> params = net->parameters();  // weight, bias of each layer in order
+    ASSERT_EQ(params.size(), 2 * (options.hidden_widths.size() + 1));
+    for (const auto& [b, i] : {std::pair<int64_t, int64_t>{0, 3}, {1, 4}, {1, 17}}) {
+      at::Tensor in = at::cat(
+          {(x[b][i] - x[b].mean(0)) / h, (rest[i] - rest.mean(0)) / h, at::full({1}, float(mask[i].item<uint8_t>()))});
+      for (size_t l = 0; l < params.size(); l += 2) {
+        in = at::mv(params[l], in) + params[l + 1];
+        if (l + 2 < params.size()) in = in.clamp_min(0);
+      }
+      const at::Tensor expected = float(options.output_scale) * in;
+      EXPECT_TRUE(at::allclose(out.delta[b][i], expected, 1e-5, 1e-6))
+          << "batch " << b << " vertex " << i << ": " << out.delta[b][i] << " against " << expected;
+    }
+  }
   out.V_hat.square().sum().backward();
   EXPECT_TRUE(tiled.grad().defined());
   for (const auto& p : net->parameters()) EXPECT_TRUE(p.grad().defined());
