@@ -39,7 +39,7 @@ std::string kibibytes(int64_t bytes) {
   return text.str();
 }
 
-// One line per run: the figures of the training speed benchmark (README, "Benchmarks": "Dataset builder and training") and the files.
+// One line per run: the figures of the training speed benchmark (docs/training.md, "Speed") and the files.
 void report(const TrainResult& result) {
   if (result.rank != 0) {
     std::cout << "rank " << result.rank << " of " << result.world_size << ": steps " << result.first_step << " -> "

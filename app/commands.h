@@ -5,7 +5,7 @@
 
 namespace amt::app {
 
-/// `amt dataset info|...`: inspect and build dataset files (README, "Dataset format").
+/// `amt dataset info|...`: inspect and build dataset files (docs/dataset.md, "The dataset file").
 void add_dataset_command(CLI::App& app);
 
 /// `amt train <module>`: train a module on dataset shards, with checkpoints and resume.

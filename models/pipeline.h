@@ -254,8 +254,9 @@ enum class PipelineStages {
 const char* pipeline_stages_name(PipelineStages stages);
 
 /// The learned apparel's default stretch limit (PipelineStepper::set_strain_limit): an apparel edge at most this
-/// many times its rest length, by a few projections per frame. Chosen on the held-out characters (README, "Artists'
-/// meshes"); `amt animate --strain-limit`, `amt eval --strain-limit` change it (0: off).
+/// many times its rest length, by a few projections per frame. Chosen on the held-out characters (CHANGELOG.md,
+/// "The stretch limit and the runtime on artist-style remakes"); `amt animate --strain-limit`, `amt eval
+/// --strain-limit` change it (0: off).
 inline constexpr float kDefaultStrainLimit = 1.2f;
 inline constexpr int kStrainLimitIterations = 4;
 

@@ -574,7 +574,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
 
 // === Outputs
 
-// `--out` replaces only what amt wrote there (README, "Outputs"): the folder may hold anything else, but a
+// `--out` replaces only what amt wrote there (docs/reliability.md): the folder may hold anything else, but a
 // checkpoint or log this run writes must be missing, or a checkpoint amt wrote for the same module (kind), or a
 // log whose header is a training log's. A user's file, a folder or a link under one of those names, or an --out
 // that is not a folder, is refused before any file is touched.

@@ -1,23 +1,23 @@
 #pragma once
-// Procedural apparel for generated bodies, built as MMD artists build it (README, "The dataset builder"): skirts, long hair,
-// twin tails, capes, sleeves, ribbons and coat tails, each a mesh skinned to chains of apparel bones that carry
-// dynamic rigid bodies, hung from the body's bones by spring 6-DOF joints; and kinematic collision capsules on the
-// body bones that approximate the generated body surface. The result is a DressedCharacter: the dressed mesh, its
-// apparel mask, ground-truth body weights, the physics rig and the rig skinning that the dataset stores.
+// Procedural apparel for generated bodies, built as MMD artists build it (docs/dataset.md, "What the builder makes"):
+// skirts, long hair, twin tails, capes, sleeves, ribbons and coat tails, each a mesh skinned to chains of apparel bones
+// that carry dynamic rigid bodies, hung from the body's bones by spring 6-DOF joints; and kinematic collision capsules
+// on the body bones that approximate the generated body surface. The result is a DressedCharacter: the dressed mesh,
+// its apparel mask, ground-truth body weights, the physics rig and the rig skinning that the dataset stores.
 //
-// Conventions: metres, Y up, facing +Z (data_tools/builder/body_generator.h). Rig bones 0..21 are the canonical joints in
-// order at the skeleton's rest positions; apparel bones follow, every bone after its parent. A bone's rest
-// transform is [I | rest position] (rotations are relative to rest, as everywhere in the project), so a bone's
-// skinning matrix is [R | t - R rest_position] for its posed joint transform [R | t].
+// Conventions: metres, Y up, facing +Z (data_tools/builder/body_generator.h). Rig bones 0..21 are the canonical joints
+// in order at the skeleton's rest positions; apparel bones follow, every bone after its parent. A bone's rest transform
+// is [I | rest position] (rotations are relative to rest, as everywhere in the project), so a bone's skinning matrix is
+// [R | t - R rest_position] for its posed joint transform [R | t].
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "data_tools/builder/body_generator.h"
+#include "data_tools/builder/physics.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/mesh.h"
-#include "data_tools/builder/physics.h"
 #include "data_tools/geometry/types.h"
 
 namespace amt {

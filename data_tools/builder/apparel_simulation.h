@@ -1,7 +1,8 @@
 #pragma once
-// Simulation of a dressed character's apparel under a body motion (README, "The dataset builder"): per output frame, pose the
-// body bones -> kinematic capsules follow (swept over the substeps) -> Bullet steps at 1/120 s -> simulated apparel
-// bones written back -> skinning matrices of every rig bone (the dataset's rig_transforms of that frame).
+// Simulation of a dressed character's apparel under a body motion (docs/dataset.md, "What the builder makes"): per
+// output frame, pose the body bones -> kinematic capsules follow (swept over the substeps) -> Bullet steps at 1/120 s
+// -> simulated apparel bones written back -> skinning matrices of every rig bone (the dataset's rig_transforms of that
+// frame).
 #include "data_tools/builder/apparel.h"
 #include "data_tools/builder/physics.h"
 #include "data_tools/geometry/types.h"
@@ -44,10 +45,10 @@ class ApparelSimulator {
   void update_skinning();
 
   PhysicsWorld world_;
-  std::vector<int32_t> parents_;         // rig bone parents (apparel bones after their parents)
-  std::vector<Eigen::Vector3f> rest_;    // rig bone rest positions
-  Transforms pose_;                      // scratch: full rig pose
-  Transforms skinning_;                  // output
+  std::vector<int32_t> parents_;       // rig bone parents (apparel bones after their parents)
+  std::vector<Eigen::Vector3f> rest_;  // rig bone rest positions
+  Transforms pose_;                    // scratch: full rig pose
+  Transforms skinning_;                // output
 };
 
 /// Skinning matrices [R | t - R rest] of joint transforms `pose` over bones at `rest_positions` (B each).

@@ -1,5 +1,5 @@
 #pragma once
-// Procedural stylized humanoid bodies on the canonical 22-joint skeleton (README, "The dataset builder"):
+// Procedural stylized humanoid bodies on the canonical 22-joint skeleton (docs/dataset.md, "What the builder makes"):
 // proportions sampled from a seed (chibi to tall, A-pose or T-pose), a closed manifold body surface
 // meshed from a smooth union of tapered capsules, and ground-truth body skinning weights.
 #include <cstdint>

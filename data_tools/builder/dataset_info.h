@@ -1,6 +1,6 @@
 #pragma once
 // `amt dataset info`: a human-readable summary of a dataset file or of a dataset folder
-// (README, "Dataset format (HDF5, format `amt-dataset`, version 2)" and "The `amt` program").
+// (docs/dataset.md, "The dataset file (HDF5, format `amt-dataset`, version 2)").
 #include <cstdint>
 #include <ostream>
 #include <string>

@@ -1,12 +1,13 @@
 #pragma once
-// Rigid-body physics of the dataset builder (README, "The dataset builder"): MMD-style rigs of bones, rigid bodies and spring
-// 6-DOF joints, simulated with Bullet. Bullet stays inside physics.cpp: this header needs only Eigen.
+// Rigid-body physics of the dataset builder (docs/dataset.md, "What the builder makes"): MMD-style rigs of bones, rigid
+// bodies and spring 6-DOF joints, simulated with Bullet. Bullet stays inside physics.cpp: this header needs only Eigen.
 //
 // Conventions. A rig lives in one frame and one length unit: metres for procedural characters, PMX units for
-// imported models (see mmd_physics_settings and data_tools/builder/pmx_physics.h). Bones have rest positions only; a bone
-// pose is the project's joint transform T = [R | t] (data_tools/geometry/motion.h): R the bone's global rotation relative to
-// the rest pose, t its global position, so a rest point p rigidly attached to the bone moves to R (p - p_rest) + t.
-// Rigid bodies and joints have full world transforms (position and orientation) at rest, as PMX stores them.
+// imported models (see mmd_physics_settings and data_tools/builder/pmx_physics.h). Bones have rest positions only; a
+// bone pose is the project's joint transform T = [R | t] (data_tools/geometry/motion.h): R the bone's global rotation
+// relative to the rest pose, t its global position, so a rest point p rigidly attached to the bone moves to R (p -
+// p_rest) + t. Rigid bodies and joints have full world transforms (position and orientation) at rest, as PMX stores
+// them.
 //
 // Per output frame: set_bone_pose (the animated pose) -> step (fixed substeps; kinematic bodies follow the pose,
 // interpolated across the substeps) -> bone_transforms (the pose with the simulated bones written back).

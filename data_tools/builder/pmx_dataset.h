@@ -1,7 +1,8 @@
 #pragma once
 // A real PMX model (MikuMikuDance) as a character of the dataset (`amt dataset build --pmx`) and of
 // `amt animate --apparel physics`: its whole rig posed by a canonical 22-joint motion and its own rigid bodies and
-// joints simulated in its native units, as its artist tuned them (README, "Your own PMX models"), the result in amt's frame.
+// joints simulated in its native units, as its artist tuned them (docs/dataset.md, "Your own PMX models"), the result
+// in amt's frame.
 //
 // Per output frame (PmxRigSimulator::step):
 //   1. bone pass: canonical joint transforms (amt's frame, metres; forward kinematics of a motion retargeted onto

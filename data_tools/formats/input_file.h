@@ -8,7 +8,7 @@
 namespace amt {
 
 /// Largest input file amt reads, in bytes: 4 GiB, or the environment variable AMT_MAX_INPUT_BYTES
-/// (a positive integer; README "Reliability").
+/// (a positive integer; docs/reliability.md).
 uint64_t max_input_bytes();
 
 /// Checks, with stat() and without opening it, that `path` names a regular file of at most
