@@ -67,6 +67,12 @@ void add_animate_command(CLI::App& app) {
                   "apparel bones)")
       ->check(CLI::IsMember({"auto", "rig", "model"}))
       ->capture_default_str();
+  cmd->add_option("--skin-weights", o->skin_weights,
+                  "Where the skinning weights come from: auto (default: the character's own skin when its file has "
+                  "one, a skinned glTF / VRM or a PMX model, else the skinning predictor; the run says which), model "
+                  "(the skinning predictor), or rig (the character's own skin)")
+      ->check(CLI::IsMember({"auto", "rig", "model"}))
+      ->capture_default_str();
   cmd->add_option("--apparel", o->apparel,
                   "What moves the apparel: learned (the apparel module, default) or physics (a PMX model's own rigid "
                   "bodies and joints, simulated under the motion as its artist tuned them, baked into the output), or "

@@ -70,7 +70,7 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash) {
 }
 
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
-                     const ModelBundle& bundle, const ApparelBones* bones) {
+                     const ModelBundle& bundle, const ApparelBones* bones, const MatrixXfR& weights) {
   uint64_t h = kFnvOffset;
   const int64_t sizes[4] = {mesh.V.rows(), mesh.F.rows(), joints.rows(), int64_t(mask_override.size())};
   h = fnv1a64(sizes, sizeof(sizes), h);
@@ -86,6 +86,11 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
     h = fnv1a64(bones->parents.data(), bones->parents.size() * sizeof(int32_t), h);
     h = fnv1a64(bones->indices.data(), size_t(bones->indices.size()) * sizeof(int32_t), h);
     h = fnv1a64(bones->weights.data(), size_t(bones->weights.size()) * sizeof(float), h);
+  }
+  if (weights.rows() > 0) {
+    const int64_t shape[2] = {weights.rows(), weights.cols()};
+    h = fnv1a64(shape, sizeof(shape), h);
+    h = fnv1a64(weights.data(), size_t(weights.size()) * sizeof(float), h);
   }
   if (!bundle.dir.empty()) {
     for (const char* file : {kSegmenterCheckpoint, kSkinningCheckpoint, kApparelCheckpoint, kRefinerCheckpoint}) {
@@ -192,12 +197,12 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
 
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
                        const std::vector<uint8_t>& mask_override, const std::string& cache_path,
-                       std::shared_ptr<const ApparelBones> bones) {
+                       std::shared_ptr<const ApparelBones> bones, const MatrixXfR& weights) {
   const auto start = std::chrono::steady_clock::now();
   BindResult result;
   std::string key;
   if (!cache_path.empty()) {
-    key = bind_key(mesh, joints, mask_override, bundle, bones.get());
+    key = bind_key(mesh, joints, mask_override, bundle, bones.get(), weights);
     result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
     if (result.reason.rfind("damaged", 0) == 0) {
       std::cerr << "amt: " << cache_path << ": bind cache: " << result.reason << ", recomputing it\n";
@@ -217,6 +222,12 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
       options.apparel_mask =
           at::from_blob(const_cast<uint8_t*>(mask_override.data()), {int64_t(mask_override.size())}, at::kByte)
               .to(at::kBool);
+    }
+    if (weights.rows() > 0) {
+      AMT_CHECK(weights.rows() == mesh.V.rows() && weights.cols() == joints.rows(), "skin weights: expected ",
+                mesh.V.rows(), " x ", joints.rows(), " weights, found ", weights.rows(), " x ", weights.cols());
+      options.weights =
+          at::from_blob(const_cast<float*>(weights.data()), {weights.rows(), weights.cols()}, at::kFloat).clone();
     }
     result.bound = bind_character(bundle, V, F, Jt, options);
     if (!cache_path.empty()) save_bind(cache_path, key, result.bound);

@@ -30,10 +30,11 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
 /// The key of a bind: "fnv1a64:<16 hex>" over the mesh (V #V by 3, F #F by 3), rest joints (#J by 3),
 /// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
 /// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded), and the apparel bones given as handles (null:
-/// none; their heads, parents and vertex weights). Throws amt::Error when a
-/// checkpoint file cannot be read.
+/// none; their heads, parents and vertex weights), and the skin weights given in place of the predicted ones (empty:
+/// none). Throws amt::Error when a checkpoint file cannot be read.
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
-                     const ModelBundle& bundle, const ApparelBones* bones = nullptr);
+                     const ModelBundle& bundle, const ApparelBones* bones = nullptr,
+                     const MatrixXfR& weights = MatrixXfR());
 
 /// Writes a bound character and its key to `path` (through "<path>.amt-tmp"). Throws amt::Error when the
 /// file cannot be written.
@@ -55,11 +56,12 @@ struct BindResult {
 };
 
 /// Loads the bind from `cache_path` when its key matches, else binds (bind_character with the mask
-/// override, if any, and `bones` as the apparel module's handles: BindOptions::apparel_bones) and writes the cache. An
-/// empty `cache_path` disables the cache.
-///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1)
+/// override, if any, `bones` as the apparel module's handles: BindOptions::apparel_bones, and `weights` in place of the
+/// skinning predictor's: BindOptions::weights) and writes the cache. An empty `cache_path` disables the cache.
+///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1),
+///   weights (empty, or #V by #J rows summing to 1: the character's own skin, canonical_file_weights)
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
                        const std::vector<uint8_t>& mask_override, const std::string& cache_path,
-                       std::shared_ptr<const ApparelBones> bones = nullptr);
+                       std::shared_ptr<const ApparelBones> bones = nullptr, const MatrixXfR& weights = MatrixXfR());
 
 }  // namespace amt

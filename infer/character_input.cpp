@@ -219,6 +219,7 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
             file_apparel_bones(names, parents, heads, pmx_skin_weights(model), pmx_physics_driven_bones(model));
       }
       c.file_skeleton = pmx_skeleton(model);  // names made unique: PMX allows repeats
+      if (spec.joints.empty()) c.file_weights = pmx_skin_weights(model);
       AMT_CHECK(!model.bones.empty() || !spec.joints.empty(), path,
                 ": joints: the character has no skeleton (no bones): expected --character-joints FILE");
       has_skeleton = !model.bones.empty();
@@ -247,9 +248,9 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.turned = true;
     if (spring_rig) turn_spring_rig(*spring_rig);
   }
-  if (spring_rig && gltf_weights.num_vertices() == c.mesh.num_vertices()) {
-    c.springs = std::move(spring_rig);
+  if (gltf_weights.num_vertices() == c.mesh.num_vertices() && spec.joints.empty()) {
     c.file_weights = gltf_weights;
+    if (spring_rig) c.springs = std::move(spring_rig);
   }
   c.skeleton = c.rest.skeleton;
   if (gltf_weights.num_vertices() == c.mesh.num_vertices()) {
@@ -316,6 +317,23 @@ std::vector<uint8_t> read_apparel_mask(const std::string& path, int num_vertices
     mask[i] = uint8_t(values[i]);
   }
   return mask;
+}
+
+MatrixXfR canonical_file_weights(const RuntimeCharacter& c) {
+  const int N = c.mesh.num_vertices();
+  const SparseWeights& fw = c.file_weights;
+  if (fw.num_vertices() != N || N == 0) return MatrixXfR();
+  MatrixXfR W = MatrixXfR::Zero(N, kCanonicalJointCount);
+  for (int i = 0; i < N; ++i) {
+    for (int k = 0; k < fw.indices.cols(); ++k) {
+      const int b = fw.indices(i, k);
+      if (b >= 0 && b < int(c.rest.carrier.size()) && fw.weights(i, k) > 0)
+        W(i, c.rest.carrier[size_t(b)]) += fw.weights(i, k);
+    }
+    const float sum = W.row(i).sum();
+    if (sum > 0) W.row(i) /= sum;
+  }
+  return W;
 }
 
 }  // namespace amt

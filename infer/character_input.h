@@ -68,9 +68,11 @@ struct RuntimeCharacter {
   /// True when the file's character faced -Z (its left hip on -X, as VRM 0.x avatars stand) and was turned half
   /// a turn about Y to face +Z as amt's motions do; mesh and skeletons are the turned ones.
   bool turned = false;
-  /// A VRM avatar's spring bones on file_skeleton (`--apparel spring-bones`) and the file's own skin weights over
-  /// file_skeleton that they move vertices with; null / empty for other characters.
+  /// A VRM avatar's spring bones on file_skeleton (`--apparel spring-bones`); null for other characters.
   std::shared_ptr<const SpringRig> springs;
+  /// The file's own skin weights over file_skeleton (a skinned glTF / VRM, a PMX model), which `amt animate`
+  /// skins the body with by default (canonical_file_weights) and spring bones move vertices with; empty for
+  /// characters without a skin of their own (OBJ, dataset and generated characters, --character-joints).
   SparseWeights file_weights;
 };
 
@@ -82,6 +84,11 @@ std::optional<std::pair<std::string, std::string>> split_dataset_spec(const std:
 /// character without a skeleton and no joints file ("x.obj: joints: the character has no skeleton:
 /// expected x.joints.json beside it or --character-joints FILE"), or an unmappable skeleton.
 RuntimeCharacter load_character(const CharacterSpec& spec);
+
+/// The file's own skin weights moved onto the canonical joints: each file joint's weight added to the canonical joint
+/// that carries it (CanonicalRest::carrier), rows renormalised to sum to 1. #V by kCanonicalJointCount; empty (0
+/// rows) when the character has no skin of its own (RuntimeCharacter::file_weights).
+MatrixXfR canonical_file_weights(const RuntimeCharacter& character);
 
 /// Reads a per-vertex apparel mask (`--apparel-mask FILE`) for a mesh of `num_vertices` vertices:
 /// a JSON array of N numbers 0/1 (or booleans), or a text file of N whitespace-separated 0/1 values.

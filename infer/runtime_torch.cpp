@@ -486,17 +486,7 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   OutputInfo info = output_info(character, source, s);
   info.apparel_mask = character.rig_apparel_mask;
   if (info.apparel_mask.size() != size_t(s.vertices)) info.apparel_mask.assign(size_t(s.vertices), 0);
-  {  // the file's weights summed onto the canonical joints that carry their joints
-    MatrixXfR W = MatrixXfR::Zero(s.vertices, kCanonicalJointCount);
-    const SparseWeights& fw = character.file_weights;
-    for (int i = 0; i < s.vertices; ++i) {
-      for (int k = 0; k < kMaxInfluences; ++k) {
-        const int b = fw.indices(i, k);
-        if (b >= 0 && fw.weights(i, k) > 0) W(i, character.rest.carrier[size_t(b)]) += fw.weights(i, k);
-      }
-    }
-    info.weights = std::move(W);
-  }
+  info.weights = canonical_file_weights(character);  // the file's weights on the canonical joints that carry them
   std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
 
   // Settle under gravity for a second at the rest pose, then blend into the first frame over the lead-in, as the
@@ -594,10 +584,26 @@ AnimateSummary animate(const AnimateOptions& o) {
   } else {
     s.handle_source = "picked automatically";
   }
+  // The skinning weights: the character's own skin when its file has one (the artist's weights are the body's ground
+  // truth, and skinning with them moves a body exactly as the file's own rig does), else the skinning predictor.
+  AMT_CHECK(o.skin_weights.empty() || o.skin_weights == "auto" || o.skin_weights == "model" || o.skin_weights == "rig",
+            "--skin-weights: expected auto, model or rig, found '", o.skin_weights, "'");
+  MatrixXfR own_weights;
+  if (o.skin_weights != "model") own_weights = canonical_file_weights(character);
+  AMT_CHECK(o.skin_weights != "rig" || own_weights.rows() > 0, o.character.spec,
+            ": --skin-weights rig: the character has no skin of its own (expected a skinned glTF / VRM or a PMX "
+            "model); use --skin-weights model");
+  s.weights_source = own_weights.rows() > 0
+                         ? "the character's own skin (" + std::to_string(character.file_skeleton.num_joints()) +
+                               " bones, each weight on the canonical joint that carries it" +
+                               (o.skin_weights == "rig" ? ")" : "; --skin-weights auto: the file has one)")
+                         : std::string("the skinning predictor") +
+                               (o.skin_weights == "model" ? "" : " (--skin-weights auto: the character has no skin)");
   const MotionPlayer player(source, character, o.playback);
   if (o.verbose) {
     print_inputs(character, source);
     std::cerr << "animate: apparel mask from " << s.apparel_source << "\n";
+    std::cerr << "animate: skinning weights from " << s.weights_source << "\n";
     std::cerr << "animate: apparel: " << s.apparel << "\n";
   }
   s.load_seconds = seconds_since(job_start);
@@ -621,8 +627,8 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.bind_path = o.bind_path.empty()     ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
-  const BindResult bind =
-      bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path, bones);
+  const BindResult bind = bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override,
+                                      s.bind_path, bones, own_weights);
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
   s.hung = bind.bound.hung;
@@ -797,6 +803,7 @@ std::string describe(const AnimateSummary& s) {
       out << line;
     }
   }
+  if (!s.weights_source.empty()) out << "skinning weights: " << s.weights_source << "\n";
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
     std::snprintf(line, sizeof(line),

@@ -115,6 +115,10 @@ struct AnimateOptions {
   std::string apparel_mask;
   std::string apparel = "learned";
   std::string apparel_handles = "auto";
+  /// Where the skinning weights come from: "auto" or empty (the character's own skin when its file has one: a
+  /// skinned glTF / VRM, a PMX model; else the skinning predictor), "model" (the skinning predictor, eq. 5-7), or
+  /// "rig" (the character's own skin: canonical_file_weights; an error without one).
+  std::string skin_weights = "auto";
   std::string html_dir, viewer_dir;
   PlaybackOptions playback;
   bool resolve_penetration = true;
@@ -152,6 +156,9 @@ struct AnimateSummary {
   /// Where the handles are: "picked automatically ..." or "the rig's N apparel bones ..."
   /// (AnimateOptions::apparel_handles).
   std::string handle_source;
+  /// Where the skinning weights came from: "the skinning predictor" or "the character's own skin ..."
+  /// (AnimateOptions::skin_weights).
+  std::string weights_source;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.

@@ -435,6 +435,25 @@ TEST(VrmAvatar, SpringBonesMoveTheHairTheSameWayAt30And60Fps) {
   EXPECT_LT(between, 0.002) << "mean apparel distance between the 30 and 60 fps runs, metres";
 }
 
+// Godette under frames [0, frames) of CMU 05_01 at 30 fps, skinned by the file's own weights, computed from the
+// public pieces: the canonical joint transforms of the motion on the character, their skinning transforms, each file
+// joint carried by its canonical joint, the file's weights.
+std::vector<MatrixX3f> godette_file_skinning(const RuntimeCharacter& c, int frames) {
+  MotionSpec spec;
+  spec.spec = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
+  PlaybackOptions playback;
+  playback.fps = 30.0f;
+  const MotionPlayer player(load_motion(spec), c, playback);
+  std::vector<MatrixX3f> out(static_cast<size_t>(frames));
+  for (int t = 0; t < frames; ++t) {
+    const Transforms M = skinning_matrices(c.skeleton, player.frame(t));
+    Transforms file(c.rest.carrier.size());
+    for (size_t b = 0; b < file.size(); ++b) file[b] = M.at(size_t(c.rest.carrier[b]));
+    linear_blend_skinning(c.mesh.V, c.file_weights, file, out[size_t(t)]);
+  }
+  return out;
+}
+
 // Every vertex the springs do not move is the file's own skinning under the motion, computed here from the public
 // pieces: the canonical joint transforms of the motion on the character, their skinning transforms, each file joint
 // carried by its canonical joint, the file's weights. (A pose handed to the springs as joint transforms instead of
@@ -444,19 +463,11 @@ TEST(VrmAvatar, SpringBonesLeaveTheBodyToTheFilesOwnSkinning) {
   const std::vector<MatrixX3f> out = spring_run(dir, 30, 12);
   ASSERT_EQ(out.size(), 12u);
   const RuntimeCharacter c = load_character({kGodette, "", ""});
-  MotionSpec spec;
-  spec.spec = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
-  PlaybackOptions playback;
-  playback.fps = 30.0f;
-  const MotionPlayer player(load_motion(spec), c, playback);
+  const std::vector<MatrixX3f> skinned = godette_file_skinning(c, 12);
   double worst = 0.0, apparel_moved = 0.0;
   int apparel = 0;
   for (int t = 0; t < 12; ++t) {
-    const Transforms M = skinning_matrices(c.skeleton, player.frame(t));
-    Transforms file(c.rest.carrier.size());
-    for (size_t b = 0; b < file.size(); ++b) file[b] = M.at(size_t(c.rest.carrier[b]));
-    MatrixX3f expected;
-    linear_blend_skinning(c.mesh.V, c.file_weights, file, expected);
+    const MatrixX3f& expected = skinned[size_t(t)];
     for (int i = 0; i < c.mesh.num_vertices(); ++i) {
       const double d = (out[size_t(t)].row(i) - expected.row(i)).norm();
       if (c.rig_apparel_mask[size_t(i)]) {
@@ -470,6 +481,49 @@ TEST(VrmAvatar, SpringBonesLeaveTheBodyToTheFilesOwnSkinning) {
   ASSERT_GT(apparel, 0);
   EXPECT_GT(apparel_moved / apparel, 1e-3) << "the spring-driven vertices move away from rigid skinning";
   EXPECT_LT(apparel_moved / apparel, 0.2) << "... by centimetres, not by a body's height";
+}
+
+// The learned path skins the body with the avatar's own weights by default (the file has a skin): every vertex the
+// output's apparel mask leaves to the body is the file's own skinning under the motion, as on the spring path. With
+// --skin-weights model the skinning predictor's weights move it differently.
+TEST(VrmAvatar, TheLearnedPathSkinsTheBodyWithTheAvatarsOwnWeights) {
+  const std::filesystem::path dir = test::temp_dir("vrm_own_weights");
+  const std::string model = std::filesystem::path(AMT_ASSET_DIR).parent_path().string() + "/models/pretrained";
+  const auto run = [&](const std::string& weights, const std::string& out) {
+    return test::run_command("cd '" + dir.string() + "' && " +
+                             test::shell_command(AMT_BINARY, {"animate", "--character", kGodette, "--motion",
+                                                              std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh",
+                                                              "--model", model, "--skin-weights", weights, "--frames",
+                                                              "6", "--out", out, "--bind", "none", "--threads", "1"}));
+  };
+  const test::CommandResult own = run("auto", "own.h5"), predicted = run("model", "predicted.h5");
+  ASSERT_EQ(own.status, 0) << own.err;
+  ASSERT_EQ(predicted.status, 0) << predicted.err;
+  EXPECT_NE(own.out.find("skinning weights: the character's own skin ("), std::string::npos) << own.out;
+  EXPECT_NE(own.out.find("--skin-weights auto: the file has one)"), std::string::npos) << own.out;
+  EXPECT_NE(predicted.out.find("skinning weights: the skinning predictor\n"), std::string::npos) << predicted.out;
+
+  const RuntimeCharacter c = load_character({kGodette, "", ""});
+  const std::vector<MatrixX3f> skinned = godette_file_skinning(c, 6);
+  const DatasetReader a((dir / "own.h5").string()), b((dir / "predicted.h5").string());
+  const std::vector<uint8_t> mask = a.read_character(a.clip_info(a.clip_names()[0]).character).apparel_mask;
+  double worst_own = 0.0, mean_predicted = 0.0;
+  int body = 0;
+  for (int t = 0; t < 6; ++t) {
+    const MatrixX3f& expected = skinned[size_t(t)];
+    const MatrixX3f Va = a.read_vertices(a.clip_names()[0], t, 1), Vb = b.read_vertices(b.clip_names()[0], t, 1);
+    for (int i = 0; i < c.mesh.num_vertices(); ++i) {
+      if (mask[size_t(i)]) continue;
+      worst_own = std::max(worst_own, double((Va.row(i) - expected.row(i)).norm()));
+      mean_predicted += (Vb.row(i) - expected.row(i)).norm();
+      ++body;
+    }
+  }
+  ASSERT_GT(body, 0);
+  std::cout << "body: own weights at most " << 100 * worst_own << " cm from the file's skinning, predicted weights "
+            << 100 * mean_predicted / body << " cm on average\n";
+  EXPECT_LT(worst_own, 1e-4) << "metres";
+  EXPECT_GT(mean_predicted / body, 1e-3) << "metres: the predicted weights are not the file's";
 }
 
 TEST(VrmAvatar, SpringBonesOnACharacterWithoutThemIsAOneLineError) {
