@@ -1,8 +1,9 @@
 #pragma once
 // `amt animate --apparel physics`: a PMX model's apparel moved by its own rigid bodies and joints under the motion
 // (the look its artist tuned) instead of the apparel module. The whole mesh is skinned by the model's own weights
-// over its whole rig, physics-driven bones from the simulation (data_tools/builder/pmx_dataset.h): what the
-// dataset builder records as ground truth for the same model and motion, frame for frame.
+// over its whole rig, physics-driven bones from the simulation (data_tools/builder/pmx_dataset.h): stepped at the
+// dataset's rate, what the dataset builder records as ground truth for the same model and motion, frame for frame
+// (`amt animate` steps it at kPhysicsStepFps of infer/runtime_torch.h instead, whatever the output rate).
 #include <optional>
 #include <string>
 
