@@ -598,7 +598,9 @@ AnimateSummary animate(const AnimateOptions& o) {
                                " bones, each weight on the canonical joint that carries it" +
                                (o.skin_weights == "rig" ? ")" : "; --skin-weights auto: the file has one)")
                          : std::string("the skinning predictor") +
-                               (o.skin_weights == "model" ? "" : " (--skin-weights auto: the character has no skin)");
+                               (o.skin_weights == "model" ? ""
+                                                          : " (--skin-weights auto: own weights come from skinned "
+                                                            "glTF / VRM and PMX files only)");
   const MotionPlayer player(source, character, o.playback);
   if (o.verbose) {
     print_inputs(character, source);
