@@ -13,16 +13,16 @@
 
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
+#include "data_tools/formats/obj_io.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/motion.h"
-#include "data_tools/formats/obj_io.h"
 #include "data_tools/geometry/shapes.h"
+#include "models/checkpoint.h"
+#include "models/module_options.h"
 #include "tests/infer/runtime_fixture.h"
 #include "tests/test_support.h"
 #include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
-#include "models/checkpoint.h"
-#include "models/module_options.h"
 
 namespace amt {
 namespace {
@@ -31,9 +31,13 @@ namespace fs = std::filesystem;
 
 using Fixture = test::RuntimeFixture;
 
-Fixture make_fixture(const std::string& name) { return test::make_runtime_fixture(name); }
+Fixture make_fixture(const std::string& name) {
+  return test::make_runtime_fixture(name);
+}
 
-AnimateOptions options_for(const Fixture& f, const std::string& out) { return test::runtime_options(f, out); }
+AnimateOptions options_for(const Fixture& f, const std::string& out) {
+  return test::runtime_options(f, out);
+}
 
 std::vector<fs::path> files_in(const fs::path& dir) {
   std::vector<fs::path> out;
@@ -256,7 +260,8 @@ TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   at::Tensor transforms = at::empty({30, J, 3, 4}), body = at::empty({30, Nb, 3}), anchors = at::empty({30, Na, 3});
   for (int t = 0; t < 30; ++t) {
     const Transforms frame(T.begin() + J * t, T.begin() + J * (t + 1));
-    for (int j = 0; j < J; ++j) std::memcpy(transforms[t][j].data_ptr<float>(), frame[size_t(j)].data(), 12 * sizeof(float));
+    for (int j = 0; j < J; ++j)
+      std::memcpy(transforms[t][j].data_ptr<float>(), frame[size_t(j)].data(), 12 * sizeof(float));
     const Transforms M = skinning_matrices(c.skeleton, frame);
     MatrixX3f B, S;
     linear_blend_skinning(body_rest, body_weights, M, B);
@@ -266,8 +271,9 @@ TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   }
   torch::NoGradGuard no_grad;
   const at::Tensor A_rest = at::from_blob(const_cast<float*>(apparel_rest.data()), {Na, 3}, at::kFloat).clone();
-  const at::Tensor A = bundle.apparel.ptr()->rollout(A_rest.unsqueeze(0).repeat({3, 1, 1}), transforms, b.apparel_neighbors,
-                                               anchors);  // (30, N_a, 3)
+  const at::Tensor A =
+      bundle.apparel.ptr()->rollout(A_rest.unsqueeze(0).repeat({3, 1, 1}), transforms, b.apparel_neighbors,
+                                    anchors);  // (30, N_a, 3)
   at::Tensor tiled = at::empty({30, N, 3});
   const std::vector<uint8_t>& mask = c.apparel_mask;
   int64_t next_apparel = 0, next_body = 0;
@@ -299,6 +305,49 @@ TEST(Animate, DatasetOutputEqualsThePipelinesForwardPass) {
   const at::Tensor plain = at::from_blob(const_cast<float*>(P.data()), {30, P.rows() / 30, 3}, at::kFloat);
   EXPECT_LT((plain - tiled).abs().max().item<float>(), 1e-5f);
   EXPECT_GT((plain - expected).abs().max().item<float>(), 1e-4f);
+}
+
+// The default form of the apparel module (local, on handles) through `amt animate` equals, frame for frame, what
+// evaluation scores for it (run_pipeline on the same bind): the runtime's lead-in, streaming and writer add nothing.
+// The module is fresh with a random last layer, so the apparel moves away from the rule it is built around.
+TEST(Animate, TheLocalModuleOnHandlesWritesWhatEvaluationScores) {
+  const Fixture f = make_fixture("animate_local_equal");
+  const std::string model = test::write_fresh_model(f.dir / "local", 7, canonical_joint_names(),
+                                                    /*local_apparel=*/true, /*handle_spacing=*/0.03);
+  AnimateOptions o = options_for(f, (f.dir / "pred.h5").string());
+  o.model_dir = model;
+  o.playback.lead_in = 0;
+  o.resolve_penetration = false;
+  o.bind_path = "none";
+  const AnimateSummary s = animate(o);
+  ASSERT_EQ(s.frames, 30);
+  EXPECT_GT(s.handles, 0);
+  const ModelBundle bundle = load_model_bundle(model);
+  ASSERT_TRUE(bundle.local_apparel());
+  DatasetReader truth(f.data);
+  const CharacterData c = truth.read_character("capsules");
+  const BindResult bind = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "");
+  ASSERT_GT(bind.bound.handle_rows.size(0), 0);
+  const int64_t J = 22;
+  const Transforms T = truth.read_joint_transforms("walk0", 0, 30);
+  at::Tensor transforms = at::empty({30, J, 3, 4});
+  for (int t = 0; t < 30; ++t)
+    for (int j = 0; j < J; ++j)
+      std::memcpy(transforms[t][j].data_ptr<float>(), T[size_t(t * J + j)].data(), 12 * sizeof(float));
+  torch::NoGradGuard no_grad;
+  const at::Tensor expected =
+      run_pipeline(bundle, bind.bound, rest_apparel_history(bind.bound), transforms, PipelineStages::kBodyApparel);
+  const MatrixX3f V = DatasetReader(o.out).read_vertices("walk0", 0, 30);
+  const at::Tensor got = at::from_blob(const_cast<float*>(V.data()), {30, V.rows() / 30, 3}, at::kFloat);
+  EXPECT_LT((got - expected).abs().max().item<float>(), 1e-5f);
+  // The apparel moved with the walk, and away from where rigid skinning by its anchors would put it.
+  const MatrixXfR anchor = anchor_skinning_weights(bind.bound);
+  MatrixX3f rigid;
+  linear_blend_skinning(c.mesh.V, anchor,
+                        skinning_matrices(c.skeleton, Transforms(T.begin() + 29 * J, T.begin() + 30 * J)), rigid);
+  const at::Tensor rigid_t = at::from_blob(rigid.data(), {rigid.rows(), 3}, at::kFloat);
+  EXPECT_GT((got[29] - got[0]).abs().max().item<float>(), 0.01f);
+  EXPECT_GT((got[29] - rigid_t).abs().max().item<float>(), 1e-3f);
 }
 
 TEST(Animate, BadInputGivesOneLineErrorsAndWritesNothing) {
@@ -356,7 +405,8 @@ TEST(Animate, ObjFolderHasOneFilePerFrame) {
   o.playback.frames = 3;
   const AnimateSummary s = animate(o);
   EXPECT_EQ(s.frames, 3);
-  EXPECT_EQ(files_in(f.dir / "frames"), (std::vector<fs::path>{".amt-output", "frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
+  EXPECT_EQ(files_in(f.dir / "frames"),
+            (std::vector<fs::path>{".amt-output", "frame_0000.obj", "frame_0001.obj", "frame_0002.obj"}));
   EXPECT_EQ(read_obj((f.dir / "frames" / "frame_0002.obj").string()).num_vertices(), s.vertices);
   EXPECT_TRUE(fs::exists(f.dir / "frames.bind"));
 }
