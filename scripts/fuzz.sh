@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of tests/fuzz/ with clang (address and undefined-behaviour
 # sanitizers) and runs each for a bounded time on a seed corpus.
-#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET ...]     (default 600 s; targets: bvh pmx gltf)
+#   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET ...]     (default 600 s; targets: bvh pmx gltf vmd)
 # Work goes to build-fuzz/<target>/ (corpus, crash-* inputs). A crash input found here belongs in
 # tests/assets/<format>/ with a regression test that loads it.
 set -euo pipefail
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(bvh pmx gltf)
+[ ${#targets[@]} -gt 0 ] || targets=(bvh pmx gltf vmd)
 
 out=build-fuzz
 mkdir -p "$out/generated/amt"
@@ -39,8 +39,13 @@ for target in "${targets[@]}"; do
       cp data/characters/*.glb "$dir/corpus/"
       cp tests/assets/gltf/* "$dir/corpus/" 2>/dev/null || true
       ;;
+    vmd)
+      sources=(data_tools/formats/vmd_import.cpp "${core[@]}")
+      libs=()
+      cp data/mocap/vmd/*.vmd "$dir/corpus/"
+      ;;
     *)
-      echo "fuzz: unknown target '$target' (expected bvh, pmx or gltf)" >&2
+      echo "fuzz: unknown target '$target' (expected bvh, pmx, gltf or vmd)" >&2
       exit 2
       ;;
   esac
