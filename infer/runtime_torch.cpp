@@ -335,6 +335,32 @@ void stream_simulated_frames(const AnimateOptions& o, const RuntimeCharacter& ch
   s.total_seconds = seconds_since(job_start);
 }
 
+// A clock of model or physics steps at `step_fps` beside output frames at `out_fps`: the motion resampled to the step
+// rate (enough steps for `out_frames` output frames and one more to interpolate towards), and where output frame t
+// falls on it: between steps k0 and k1 at fraction a (a = 0 and k1 = k0 on a step; the clip's last fraction of a step
+// takes its last step).
+struct StepPosition {
+  int k0 = 0, k1 = 0;
+  double a = 0.0;
+};
+
+MotionPlayer step_clock(const SourceMotion& source, const RuntimeCharacter& character, PlaybackOptions playback,
+                        int out_frames, double out_fps, double step_fps) {
+  playback.fps = float(step_fps);
+  playback.frames = int(std::floor(double(out_frames - 1) * step_fps / out_fps + 1e-6)) + 2;
+  return MotionPlayer(source, character, playback);
+}
+
+StepPosition step_position(int t, double out_fps, double step_fps, int num_steps) {
+  const double x = double(t) * step_fps / out_fps;
+  StepPosition p;
+  p.k0 = int(std::floor(x + 1e-6));
+  p.a = x - p.k0 < 1e-6 ? 0.0 : x - p.k0;
+  if (p.k0 >= num_steps - 1) p.k0 = num_steps - 1, p.a = 0.0;
+  p.k1 = p.a > 0 ? p.k0 + 1 : p.k0;
+  return p;
+}
+
 // The checks a simulated apparel path (--apparel physics, spring-bones) makes before any work: one output file, no
 // viewer folder, no input overwritten. Returns the summary it starts.
 AnimateSummary start_simulated_path(const AnimateOptions& o, const std::string& apparel) {
@@ -396,10 +422,7 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   // an output frame at 24, 30, 60 or 120 fps falls on a step and is that step's skinning, so the same clip gives
   // the same bodies at common times at every rate; a frame between two steps (25 fps) blends their vertices. The
   // lead-in's frames count at 30 fps, as on the other paths.
-  PlaybackOptions steps = o.playback;
-  steps.fps = kPhysicsStepFps;
-  steps.frames = int(std::floor(double(s.frames - 1) * kPhysicsStepFps / double(s.fps) + 1e-6)) + 2;
-  const MotionPlayer clock(source, character, steps);
+  const MotionPlayer clock = step_clock(source, character, o.playback, s.frames, s.fps, kPhysicsStepFps);
   const Transforms first = player.frame(0);
   s.lead_in = std::max(0, o.playback.lead_in);
   physics.start(first, int(std::lround(s.lead_in * double(kPhysicsStepFps) / kApparelStepFps)));
@@ -411,21 +434,17 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   } before_step, after_step;
   stream_simulated_frames(o, character, player, first, info, *writer, "PMX physics", job_start, s,
                           [&](int t, const Transforms&, MatrixX3f& V) {
-                            const double x = double(t) * kPhysicsStepFps / double(s.fps);
-                            int k0 = int(std::floor(x + 1e-6));
-                            double a = x - k0 < 1e-6 ? 0.0 : x - k0;
-                            if (k0 >= clock.num_frames() - 1) k0 = clock.num_frames() - 1, a = 0;
-                            const int k1 = a > 0 ? k0 + 1 : k0;
-                            while (taken < k1) {
+                            const StepPosition p = step_position(t, s.fps, kPhysicsStepFps, clock.num_frames());
+                            while (taken < p.k1) {
                               physics.advance(clock.frame(++taken));
-                              if (taken < k0) continue;
+                              if (taken < p.k0) continue;
                               std::swap(before_step, after_step);
                               after_step.step = taken;
                               physics.skin(after_step.V);
                             }
-                            if (a > 0) {
-                              AMT_CHECK(before_step.step == k0, "animate: physics steps out of order at frame ", t);
-                              V = float(1 - a) * before_step.V + float(a) * after_step.V;
+                            if (p.a > 0) {
+                              AMT_CHECK(before_step.step == p.k0, "animate: physics steps out of order at frame ", t);
+                              V = float(1 - p.a) * before_step.V + float(p.a) * after_step.V;
                             } else {
                               V = after_step.V;
                             }
@@ -666,14 +685,11 @@ AnimateSummary animate(const AnimateOptions& o) {
   // apparel's offset from that skinning interpolated between the two steps around the frame's time.
   const bool resample = std::abs(s.fps - kApparelStepFps) > 1e-3f;
   std::optional<MotionPlayer> step_player;
-  if (resample) {
-    PlaybackOptions steps = o.playback;
-    steps.fps = kApparelStepFps;
-    steps.frames = int(std::floor(double(s.frames - 1) * kApparelStepFps / double(s.fps) + 1e-6)) + 2;
-    step_player.emplace(source, character, steps);
-  }
+  if (resample) step_player.emplace(step_clock(source, character, o.playback, s.frames, s.fps, kApparelStepFps));
   const MotionPlayer& clock = resample ? *step_player : player;
-  const MatrixXfR anchor = resample ? anchor_skinning_weights(session.bound()) : MatrixXfR();
+  // The skinning the offsets are taken from: any skinning does (a frame on a step gets that step's vertices back
+  // exactly), so the anchor weights' 4 largest per vertex, which cost a sparse pass per frame instead of a dense one.
+  const SparseWeights anchor = resample ? sparsify_weights(anchor_skinning_weights(session.bound())) : SparseWeights();
 
   // Lead-in from the rest pose (in model steps, so it lasts as long at every output rate), then the motion.
   const Transforms first = player.frame(0);
@@ -713,18 +729,13 @@ AnimateSummary animate(const AnimateOptions& o) {
     if (!resample) {
       step_model(t, T, times);
     } else {
-      // Output frame t lies at step position x = k0 + a, between steps k0 and k0 + 1.
-      const double x = double(t) * kApparelStepFps / double(s.fps);
-      int k0 = int(std::floor(x + 1e-6));
-      double a = x - k0 < 1e-6 ? 0.0 : x - k0;
-      if (k0 >= clock.num_frames() - 1) k0 = clock.num_frames() - 1, a = 0;  // the clip's last fraction of a step
-      const int k1 = a > 0 ? k0 + 1 : k0;
-      for (int k = after_step.step + 1; k <= k1; ++k) step_model(k, k == 0 ? first : clock.frame(k), times);
+      const StepPosition p = step_position(t, s.fps, kApparelStepFps, clock.num_frames());
+      for (int k = after_step.step + 1; k <= p.k1; ++k) step_model(k, k == 0 ? first : clock.frame(k), times);
       const auto blend_start = Clock::now();
       linear_blend_skinning(character.mesh.V, anchor, skinning_matrices(character.skeleton, T), V);
-      if (a > 0) {
-        AMT_CHECK(before_step.step == k0, "animate: apparel steps out of order at frame ", t);
-        V += float(1 - a) * before_step.offset + float(a) * after_step.offset;
+      if (p.a > 0) {
+        AMT_CHECK(before_step.step == p.k0, "animate: apparel steps out of order at frame ", t);
+        V += float(1 - p.a) * before_step.offset + float(p.a) * after_step.offset;
       } else {
         V += after_step.offset;
       }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "data_tools/formats/vmd_import.h"
+#include "tests/data_tools/formats/vmd_dance.h"
 
 namespace amt {
 namespace {
@@ -25,16 +26,6 @@ PmxBone bone(const std::string& name, const Eigen::Vector3f& position, int paren
   b.parent = parent;
   b.rotatable = b.translatable = b.visible = b.enabled = true;
   return b;
-}
-
-VmdBoneKey key(const std::string& name, uint32_t frame, const Eigen::Vector3f& t,
-               const Eigen::Quaternionf& q = Eigen::Quaternionf::Identity()) {
-  VmdBoneKey k;
-  k.bone = name;
-  k.frame = frame;
-  k.translation = t;
-  k.rotation = q;
-  return k;
 }
 
 // A left leg in MMD's frame (PMX units, facing -Z): hip 10 units up, knee at 5, ankle at 0, toe 2 units in front,
@@ -190,11 +181,11 @@ TEST(MmdPose, KeysOnUnknownBonesAreCountedNotAnError) {
   const PmxModel m = leg();
   VmdMotion motion;
   motion.source = "dance.vmd";
-  motion.bone_keys.push_back(key("左足ＩＫ", 0, {0, 3, -0.5f}));
-  motion.bone_keys.push_back(key("左足ＩＫ", 10, {0, 2, -0.5f}));
-  motion.bone_keys.push_back(key("存在しない", 0, {0, 0, 0}));
-  motion.bone_keys.push_back(key("存在しない", 4, {0, 0, 0}));
-  motion.bone_keys.push_back(key("右足ＩＫ", 4, {0, 1, 0}));
+  motion.bone_keys.push_back(test::vmd_key("左足ＩＫ", 0, {0, 3, -0.5f}));
+  motion.bone_keys.push_back(test::vmd_key("左足ＩＫ", 10, {0, 2, -0.5f}));
+  motion.bone_keys.push_back(test::vmd_key("存在しない", 0, {0, 0, 0}));
+  motion.bone_keys.push_back(test::vmd_key("存在しない", 4, {0, 0, 0}));
+  motion.bone_keys.push_back(test::vmd_key("右足ＩＫ", 4, {0, 1, 0}));
   const MmdBoneMotion out = mmd_bone_motion(m, motion);
   EXPECT_EQ(out.frames, 11);
   EXPECT_EQ(out.globals.size(), 11 * m.bones.size());
@@ -215,7 +206,7 @@ TEST(MmdPose, LongBoneNamesMatchTheirCutKeys) {
   m.source = "long.pmx";
   m.bones.push_back(bone("あいうえおかきくけこ", {0, 0, 0}, -1));  // 20 bytes in Shift-JIS
   VmdMotion motion;
-  motion.bone_keys.push_back(key(vmd_field_name("あいうえおかきくけこ"), 0, {1, 2, 3}));
+  motion.bone_keys.push_back(test::vmd_key(vmd_field_name("あいうえおかきくけこ"), 0, {1, 2, 3}));
   const MmdBoneMotion out = mmd_bone_motion(m, motion);
   EXPECT_EQ(out.matched_bones, 1);
   EXPECT_EQ(out.unmatched_keys, 0u);

@@ -12,18 +12,26 @@
 
 namespace amt::test {
 
+/// A bone key with its curves left at VmdCurve's default.
+inline VmdBoneKey vmd_key(const std::string& bone, uint32_t frame, const Eigen::Vector3f& translation,
+                          const Eigen::Quaternionf& rotation = Eigen::Quaternionf::Identity()) {
+  VmdBoneKey k;
+  k.bone = bone;
+  k.frame = frame;
+  k.translation = translation;
+  k.rotation = rotation;
+  return k;
+}
+
 inline VmdMotion vmd_dance() {
   VmdMotion m;
   m.model_name = "標準ボーン";
   const VmdCurve ease{40, 0, 87, 127};
   auto add = [&](const std::string& bone, uint32_t frame, const Eigen::Vector3f& t, const Eigen::Vector3f& euler) {
-    VmdBoneKey k;
-    k.bone = bone;
-    k.frame = frame;
-    k.translation = t;
-    k.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(euler.y(), Eigen::Vector3f::UnitY()) *
-                                    Eigen::AngleAxisf(euler.x(), Eigen::Vector3f::UnitX()) *
-                                    Eigen::AngleAxisf(euler.z(), Eigen::Vector3f::UnitZ()));
+    VmdBoneKey k = vmd_key(bone, frame, t,
+                           Eigen::Quaternionf(Eigen::AngleAxisf(euler.y(), Eigen::Vector3f::UnitY()) *
+                                              Eigen::AngleAxisf(euler.x(), Eigen::Vector3f::UnitX()) *
+                                              Eigen::AngleAxisf(euler.z(), Eigen::Vector3f::UnitZ())));
     k.curves[kVmdCurveRotation] = ease;
     m.bone_keys.push_back(k);
   };

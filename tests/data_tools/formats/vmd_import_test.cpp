@@ -70,15 +70,6 @@ std::vector<uint8_t> hand_made_v1() {
   return out;
 }
 
-VmdBoneKey key(const std::string& bone, uint32_t frame, const Eigen::Vector3f& t, const Eigen::Quaternionf& q) {
-  VmdBoneKey k;
-  k.bone = bone;
-  k.frame = frame;
-  k.translation = t;
-  k.rotation = q;
-  return k;
-}
-
 TEST(VmdImport, ReadsAHandMadeVersion1File) {
   const std::vector<uint8_t> bytes = hand_made_v1();
   const VmdMotion m = parse_vmd(bytes.data(), bytes.size(), "dance.vmd");
@@ -106,9 +97,9 @@ TEST(VmdImport, ReadsAHandMadeVersion1File) {
 TEST(VmdImport, WriterRoundTripsNamesKeysAndCurves) {
   VmdMotion m;
   m.model_name = "初音ミク";
-  m.bone_keys.push_back(key("左足ＩＫ", 0, {0.5f, 0, -1}, Eigen::Quaternionf::Identity()));
+  m.bone_keys.push_back(test::vmd_key("左足ＩＫ", 0, {0.5f, 0, -1}, Eigen::Quaternionf::Identity()));
   m.bone_keys.push_back(
-      key("右ひじ", 30, {0, 0, 0}, Eigen::Quaternionf(Eigen::AngleAxisf(1, Eigen::Vector3f::UnitZ()))));
+      test::vmd_key("右ひじ", 30, {0, 0, 0}, Eigen::Quaternionf(Eigen::AngleAxisf(1, Eigen::Vector3f::UnitZ()))));
   m.bone_keys[1].curves[kVmdCurveRotation] = {0, 0, 127, 127};
   const std::string path = (test::temp_dir("vmd_round_trip") / "m.vmd").string();
   write_vmd(m, path);
@@ -154,8 +145,8 @@ TEST(VmdImport, BezierWeightAgainstHandValues) {
 TEST(VmdImport, InterpolatesBetweenKeysWithTheLaterKeysCurves) {
   VmdMotion m;
   const Eigen::Quaternionf turned(Eigen::AngleAxisf(1.0f, Eigen::Vector3f::UnitX()));
-  m.bone_keys.push_back(key("頭", 10, {0, 0, 0}, Eigen::Quaternionf::Identity()));
-  m.bone_keys.push_back(key("頭", 20, {2, 4, 6}, turned));
+  m.bone_keys.push_back(test::vmd_key("頭", 10, {0, 0, 0}, Eigen::Quaternionf::Identity()));
+  m.bone_keys.push_back(test::vmd_key("頭", 20, {2, 4, 6}, turned));
   m.bone_keys[1].curves[kVmdCurveY] = {0, 0, 127, 0};         // the smoothstep / cube curve above
   m.bone_keys[1].curves[kVmdCurveRotation] = {0, 0, 127, 0};  // same for the rotation
   m.bone_keys[0].curves[kVmdCurveX] = {0, 0, 127, 0};         // the first key's curve is never used
@@ -182,8 +173,8 @@ TEST(VmdImport, InterpolatesBetweenKeysWithTheLaterKeysCurves) {
 
 TEST(VmdImport, MalformedFilesAreOneLineErrorsNamingTheFileAndField) {
   VmdMotion m;
-  m.bone_keys.push_back(key("センター", 0, {0, 1, 0}, Eigen::Quaternionf::Identity()));
-  m.bone_keys.push_back(key("頭", 5, {0, 0, 0}, Eigen::Quaternionf::Identity()));
+  m.bone_keys.push_back(test::vmd_key("センター", 0, {0, 1, 0}, Eigen::Quaternionf::Identity()));
+  m.bone_keys.push_back(test::vmd_key("頭", 5, {0, 0, 0}, Eigen::Quaternionf::Identity()));
   const std::vector<uint8_t> good = vmd_bytes(m);
   ASSERT_NO_THROW(parse_vmd(good.data(), good.size(), "bad.vmd"));
 
