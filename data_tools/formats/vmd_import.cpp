@@ -259,18 +259,19 @@ VmdMotion parse_vmd(const uint8_t* data, size_t size, const std::string& source)
   }
 
   // The optional tracks: counted, checked for size and skipped.
-  if (r.left() == 0) return m;
-  m.morph_keys = r.count("morph keyframe count", kMorphKeyBytes);
-  r.skip(size_t(m.morph_keys) * kMorphKeyBytes, "morph keyframes");
-  if (r.left() == 0) return m;
-  m.camera_keys = r.count("camera keyframe count", kCameraKeyBytes);
-  r.skip(size_t(m.camera_keys) * kCameraKeyBytes, "camera keyframes");
-  if (r.left() == 0) return m;
-  m.light_keys = r.count("light keyframe count", kLightKeyBytes);
-  r.skip(size_t(m.light_keys) * kLightKeyBytes, "light keyframes");
-  if (r.left() == 0) return m;
-  m.self_shadow_keys = r.count("self-shadow keyframe count", kSelfShadowKeyBytes);
-  r.skip(size_t(m.self_shadow_keys) * kSelfShadowKeyBytes, "self-shadow keyframes");
+  struct Track {
+    const char* name;
+    size_t bytes;
+    uint32_t* count;
+  };
+  for (const Track& track :
+       {Track{"morph", kMorphKeyBytes, &m.morph_keys}, Track{"camera", kCameraKeyBytes, &m.camera_keys},
+        Track{"light", kLightKeyBytes, &m.light_keys},
+        Track{"self-shadow", kSelfShadowKeyBytes, &m.self_shadow_keys}}) {
+    if (r.left() == 0) return m;
+    *track.count = r.count(detail::concat(track.name, " keyframe count"), track.bytes);
+    r.skip(size_t(*track.count) * track.bytes, detail::concat(track.name, " keyframes"));
+  }
   if (r.left() == 0) return m;
   m.ik_keys = r.count("IK keyframe count", 9);
   for (uint32_t i = 0; i < m.ik_keys; ++i) {
