@@ -2,13 +2,14 @@
 // Opens viewer pages in headless Chromium (Debian's chromium, driven by playwright-core) and checks
 // what each page reports on itself (window.amtViewerReport, viewer.js) and what it draws.
 //
-//   node viewer/check_page.mjs URL... [--meshes N] [--apparel] [--screenshot FILE]
+//   node viewer/check_page.mjs URL... [--meshes N] [--apparel] [--screenshot FILE] [--report FILE]
 //
 // Every page (one browser, a page each) must become "ready" with N meshes (default: at least 1), every
 // file loaded with at least one frame, no error (a file that does not load, WebGL, an exception,
 // console.error), and a screenshot that is not blank (more than 1 % of its pixels away from the
 // background; with --apparel, some pixels of the apparel tint's blue). --screenshot saves the first
-// page's. Each page's report is printed (files, frames, vertices, apparel, errors, PMD_a readout).
+// page's. Each page's report is printed (files, frames, vertices, apparel, fps, format, errors, PMD_a readout);
+// --report writes every page's whole report (window.amtViewerReport) as a JSON list, in the order of the URLs.
 //
 // Exit status: 0 when every check passes, 1 when one fails (the reason on stderr), 77 when Chromium
 // cannot start (the test is then skipped, with the reason, or fails when AMT_REQUIRE_BROWSER is set).
@@ -17,7 +18,7 @@ import { chromium } from 'playwright-core';
 import { writeFile } from 'node:fs/promises';
 
 const args = process.argv.slice(2);
-const valued = new Set(['--meshes', '--screenshot', '--timeout']);
+const valued = new Set(['--meshes', '--screenshot', '--report', '--timeout']);
 const urls = [], options = {};
 for (let k = 0; k < args.length; ++k) {
   if (valued.has(args[k])) options[args[k]] = args[++k];
@@ -25,7 +26,7 @@ for (let k = 0; k < args.length; ++k) {
   else urls.push(args[k]);
 }
 if (urls.length === 0) {
-  console.error('usage: node check_page.mjs URL... [--meshes N] [--apparel] [--screenshot FILE]');
+  console.error('usage: node check_page.mjs URL... [--meshes N] [--apparel] [--screenshot FILE] [--report FILE]');
   process.exit(2);
 }
 const meshes = options['--meshes'];
@@ -68,12 +69,14 @@ async function checkPage(url, screenshotPath) {
     failed(`${url}: the page did not finish loading in ${timeout} ms (report: ${JSON.stringify(report)})`);
   }
   const report = await page.evaluate(() => window.amtViewerReport);
+  reports.push(report);
   console.log(`check_page: ${url}: ${report.status} after ${Date.now() - started} ms: ${report.meshes} meshes, ` +
               `${report.framesLoaded} frames loaded, frame time ${report.frameTimeMs?.toFixed(2)} ms, ` +
               `${report.errors.length} errors`);
   for (const f of report.files) {
     console.log(`  ${f.file} (${f.role}): ${f.frames ?? '-'} frames, ${f.vertices ?? '-'} vertices, ` +
-                `${f.apparelVertices ?? '-'} apparel${f.error ? ', error: ' + f.error : ''}`);
+                `${f.apparelVertices ?? '-'} apparel, ${f.fps ?? '-'} fps, ${f.format ?? '-'}` +
+                `${f.error ? ', error: ' + f.error : ''}`);
   }
   for (const e of report.errors) console.log('  error: ' + e);
   for (const e of consoleErrors) console.log('  console: ' + e);
@@ -114,6 +117,7 @@ async function checkPage(url, screenshotPath) {
 }
 
 let status = 0;
+const reports = [];
 try {
   for (const [k, url] of urls.entries()) await checkPage(url, k === 0 ? options['--screenshot'] : undefined);
   console.log('check_page: passed');
@@ -122,5 +126,6 @@ try {
   status = 1;
 } finally {
   await browser.close();
+  if (options['--report']) await writeFile(options['--report'], JSON.stringify(reports, null, 1));
 }
 process.exit(status);

@@ -1,5 +1,9 @@
-// amt's viewer: plays the mesh-sequence GLBs that amt writes (data_tools/formats/gltf_export.h: frame 0 as
-// POSITION, frame k as morph target k, the apparel mask as the COLOR_0 tint) side by side on one clock.
+// amt's viewer: plays the GLBs that amt writes (data_tools/formats/gltf_export.h) side by side on one clock:
+// mesh sequences (asset.extras.amt_format "mesh-sequence": frame 0 as POSITION, frame k as morph target k) and
+// skinned animations ("skinned-animation": one skinned mesh, its joints and apparel handles as nodes, one
+// animation with keyframe k at k / fps), both with the apparel mask as the COLOR_0 tint. Every file is drawn
+// from its vertex positions at exact frames, computed on the CPU (a skinned animation's by three.js's own
+// skinning, SkinnedMesh.getVertexPosition), so that every kind is measured and framed alike.
 //
 // What it plays comes from a manifest, viewer.json beside the page (or ?manifest=NAME):
 //   {"format": "amt-viewer", "version": 1, "title": "...",
@@ -13,9 +17,10 @@
 //
 // The page reports on itself for tests (tests/viewer/): window.amtViewerReport holds status ("loading",
 // "ready" once every file of the group is loaded and drawn, "error" when anything failed), the files
-// with their frames, vertices and apparel vertices, the number of meshes drawn, the current frame, the
-// PMD_a readout, the frame time, and every error (load failures, WebGL, uncaught exceptions and
-// console.error messages).
+// with their format (as played), frames, fps, vertices, apparel vertices, box (min and max over the clip) and
+// a skinned animation's joint count, the number of meshes drawn, the current frame, the
+// PMD_a readout (and pmdAFrames: each item's readout at every frame of the clip), the frame time, and every
+// error (load failures, WebGL, uncaught exceptions and console.error messages).
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -33,6 +38,7 @@ const report = {
   frame: 0,
   frames: 0,
   pmdA: {},
+  pmdAFrames: {},
   frameTimeMs: null,
   renderedFrames: 0,
   notes: [],
@@ -86,26 +92,18 @@ function resize() {
 window.addEventListener('resize', resize);
 resize();
 
-// === One played file: frame 0 and the per-frame deltas of the GLB's morph targets, applied on the CPU
-// (exact frames, no limit on the target count, and the positions are there for the PMD_a readout).
+// === One played file: a mesh sequence or a skinned animation. Both are drawn as our own geometry whose
+// positions are rewritten per frame (exact frames, no morph targets or bones uploaded to the GPU), and both
+// give the positions of any frame (frameInto) for the PMD_a readout and the box.
 
-class Sequence {
-  constructor(item, gltf) {
+// What the two kinds share: the apparel mask read from COLOR_0, the drawn mesh, and the box over every frame.
+class Played {
+  // `geometry`: the file's geometry (its vertex count, index and COLOR_0 are used); `format`: what the file is.
+  constructor(item, gltf, geometry, format) {
     this.item = item;
-    let mesh = null;
-    gltf.scene.traverse((o) => { if (!mesh && o.isMesh) mesh = o; });
-    if (!mesh) throw new Error('no mesh in the file');
-    const geometry = mesh.geometry;
-    const position = geometry.getAttribute('position');
-    this.vertices = position.count;
-    this.base = readFloats(position);
-    this.deltas = (geometry.morphAttributes.position ?? []).map(readFloats);
-    this.frames = 1 + this.deltas.length;
+    this.format = format;
+    this.vertices = geometry.getAttribute('position').count;
     const extras = gltf.asset?.extras ?? {};
-    if (extras.amt_format !== 'mesh-sequence') {
-      report.notes.push(item.file + ': not an amt mesh sequence (asset.extras.amt_format is ' +
-                        JSON.stringify(extras.amt_format) + '): its morph targets are played as frames');
-    }
     this.fps = Number(extras.fps) > 0 ? Number(extras.fps) : 30;
     // The apparel mask: COLOR_0 is kApparelColor on apparel, kBodyColor elsewhere (blue above red).
     const color = geometry.getAttribute('color');
@@ -115,9 +113,9 @@ class Sequence {
       for (let i = 0; i < this.vertices; ++i) this.mask[i] = color.getZ(i) > color.getX(i) ? 1 : 0;
     }
     this.apparelVertices = this.mask ? this.mask.reduce((a, b) => a + b, 0) : null;
-    // Our own geometry: positions rewritten per frame, no morph targets uploaded to the GPU.
+    // Our own geometry: positions rewritten per frame.
     const own = new THREE.BufferGeometry();
-    this.positions = new THREE.BufferAttribute(new Float32Array(this.base), 3);
+    this.positions = new THREE.BufferAttribute(new Float32Array(3 * this.vertices), 3);
     own.setAttribute('position', this.positions);
     if (color) own.setAttribute('color', color);
     own.setIndex(geometry.getIndex());
@@ -127,17 +125,49 @@ class Sequence {
     }));
     this.mesh.frustumCulled = false;
     this.shown = -1;
-    // The box over every frame, for the layout and the camera.
+  }
+
+  // The box over every frame, for the layout and the camera: `sample(k, visit)` calls visit(x, y, z) on some
+  // vertices of frame k (a sample of the vertices is enough for a box).
+  boxOver(sample) {
     this.box = new THREE.Box3();
     const p = new THREE.Vector3();
-    for (let k = 0; k < this.frames; ++k) {
-      const d = k > 0 ? this.deltas[k - 1] : null;
-      for (let i = 0; i < this.vertices; i += 7) {  // a sample of the vertices is enough for a box
-        const j = 3 * i;
-        p.set(this.base[j] + (d ? d[j] : 0), this.base[j + 1] + (d ? d[j + 1] : 0), this.base[j + 2] + (d ? d[j + 2] : 0));
-        this.box.expandByPoint(p);
-      }
+    for (let k = 0; k < this.frames; ++k) sample(k, (x, y, z) => this.box.expandByPoint(p.set(x, y, z)));
+  }
+
+  show(k) {
+    if (k === this.shown) return;
+    this.frameInto(k, this.positions.array);
+    this.positions.needsUpdate = true;
+    this.shown = k;
+  }
+
+  dispose() {}
+}
+
+// A mesh sequence: frame 0 and the per-frame deltas of the GLB's morph targets.
+class Sequence extends Played {
+  constructor(item, gltf) {
+    let mesh = null;
+    gltf.scene.traverse((o) => { if (!mesh && o.isMesh) mesh = o; });
+    if (!mesh) throw new Error('no mesh in the file');
+    const extras = gltf.asset?.extras ?? {};
+    // Anything that is not a skinned animation is played as one: "morph targets" when it is not one either.
+    super(item, gltf, mesh.geometry, extras.amt_format === 'mesh-sequence' ? 'mesh-sequence' : 'morph targets');
+    const geometry = mesh.geometry;
+    this.base = readFloats(geometry.getAttribute('position'));
+    this.deltas = (geometry.morphAttributes.position ?? []).map(readFloats);
+    this.frames = 1 + this.deltas.length;
+    if (extras.amt_format !== 'mesh-sequence') {
+      report.notes.push(item.file + ': not an amt mesh sequence (asset.extras.amt_format is ' +
+                        JSON.stringify(extras.amt_format) + '): its morph targets are played as frames');
     }
+    this.boxOver((k, visit) => {
+      const d = k > 0 ? this.deltas[k - 1] : null;
+      for (let j = 0; j < this.base.length; j += 21) {  // every 7th vertex
+        visit(this.base[j] + (d ? d[j] : 0), this.base[j + 1] + (d ? d[j + 1] : 0), this.base[j + 2] + (d ? d[j + 2] : 0));
+      }
+    });
   }
 
   // Positions of frame k (3 N floats) into `out`.
@@ -148,13 +178,90 @@ class Sequence {
     for (let j = 0; j < out.length; ++j) out[j] += d[j];
     return out;
   }
+}
 
-  show(k) {
-    if (k === this.shown) return;
-    this.frameInto(k, this.positions.array);
-    this.positions.needsUpdate = true;
-    this.shown = k;
+// A skinned animation: the file's skinned mesh posed by its animation. Frame k is the animation at time
+// k / fps (keyframe k) set on an AnimationMixer, its joints' world matrices updated, and every vertex skinned
+// by three.js (SkinnedMesh.getVertexPosition: the sum of its weights times joint world matrix times inverse
+// bind matrix, in the scene's frame since amt's skinned mesh sits at the root). Frames are computed when first
+// shown or measured and kept.
+class SkinnedAnimation extends Played {
+  constructor(item, gltf) {
+    let skinned = null;
+    gltf.scene.traverse((o) => { if (!skinned && o.isSkinnedMesh) skinned = o; });
+    if (!skinned) throw new Error('asset.extras.amt_format is "skinned-animation": expected a skinned mesh, found none');
+    const clip = gltf.animations[0];
+    if (!clip) throw new Error('asset.extras.amt_format is "skinned-animation": expected an animation, found none');
+    super(item, gltf, skinned.geometry, 'skinned-animation');
+    const version = gltf.asset?.extras?.amt_format_version;
+    if (version !== 1) {
+      report.notes.push(item.file + ': skinned animation of amt_format_version ' + JSON.stringify(version) +
+                        ', this page reads version 1');
+    }
+    if (gltf.animations.length > 1) {
+      report.notes.push(item.file + ': ' + gltf.animations.length + ' animations, the first (' +
+                        JSON.stringify(clip.name) + ') is played');
+    }
+    this.root = gltf.scene;
+    this.skinned = skinned;
+    this.joints = skinned.skeleton.bones.length;
+    this.mixer = new THREE.AnimationMixer(this.root);
+    this.action = this.mixer.clipAction(clip);
+    this.action.play();
+    // Keyframe k at k / fps: the last at the clip's duration.
+    this.frames = Math.max(1, Math.round(clip.duration * this.fps) + 1);
+    this.cache = new Array(this.frames);
+    this.posed = -1;
+    const v = new THREE.Vector3();
+    this.boxOver((k, visit) => {
+      this.pose(k);
+      for (let i = 0; i < this.vertices; i += 7) {
+        skinned.getVertexPosition(i, v);
+        visit(v.x, v.y, v.z);
+      }
+    });
   }
+
+  // The skeleton at frame k.
+  pose(k) {
+    if (k === this.posed) return;
+    this.action.time = k / this.fps;
+    this.mixer.update(0);  // evaluates every channel at action.time
+    // Rotations are stored as normalized SHORT components: back to unit quaternions.
+    for (const bone of this.skinned.skeleton.bones) bone.quaternion.normalize();
+    this.root.updateMatrixWorld(true);
+    this.skinned.skeleton.update();
+    this.posed = k;
+  }
+
+  // Positions of frame k (3 N floats) into `out`.
+  frameInto(k, out) {
+    let frame = this.cache[k];
+    if (!frame) {
+      this.pose(k);
+      frame = new Float32Array(3 * this.vertices);
+      const v = new THREE.Vector3();
+      for (let i = 0; i < this.vertices; ++i) {
+        this.skinned.getVertexPosition(i, v);
+        frame[3 * i] = v.x, frame[3 * i + 1] = v.y, frame[3 * i + 2] = v.z;
+      }
+      this.cache[k] = frame;
+    }
+    out.set(frame);
+    return out;
+  }
+
+  dispose() {
+    this.mixer.stopAllAction();
+    this.mixer.uncacheRoot(this.root);
+    this.cache = [];
+  }
+}
+
+// The played form of a loaded GLB, by its asset.extras.amt_format.
+function played(item, gltf) {
+  if (gltf.asset?.extras?.amt_format === 'skinned-animation') return new SkinnedAnimation(item, gltf);
+  return new Sequence(item, gltf);
 }
 
 function readFloats(attribute) {
@@ -204,9 +311,10 @@ function currentFrame() { return Math.min(clipFrames() - 1, Math.floor(clock * c
 
 async function loadGroup(index) {
   const generation = ++loadGeneration;
-  for (const s of sequences) { scene.remove(s.mesh); s.mesh.geometry.dispose(); s.mesh.material.dispose(); }
+  for (const s of sequences) { scene.remove(s.mesh); s.mesh.geometry.dispose(); s.mesh.material.dispose(); s.dispose(); }
   sequences = [];
   comparisons = [];
+  report.pmdAFrames = {};
   labels.replaceChildren();
   const group = manifest.groups[index];
   report.group = index;
@@ -225,8 +333,10 @@ async function loadGroup(index) {
       return;
     }
     try {
-      const s = new Sequence({ ...group.items[k], label: entry.label, role: entry.role }, result.value);
+      const s = played({ ...group.items[k], label: entry.label, role: entry.role }, result.value);
       entry.frames = s.frames, entry.vertices = s.vertices, entry.apparelVertices = s.apparelVertices, entry.fps = s.fps;
+      entry.format = s.format, entry.box = { min: s.box.min.toArray(), max: s.box.max.toArray() };
+      if (s.joints !== undefined) entry.joints = s.joints;
       loaded.push(s);
     } catch (error) {
       entry.error = error.message;
@@ -299,6 +409,7 @@ function compare() {
     const perFrame = new Float64Array(frames);
     for (let k = 0; k < frames; ++k) perFrame[k] = distanceCm(s, gt, k, a, b);
     comparisons.push({ sequence: s, perFrame, mean: perFrame.reduce((x, y) => x + y, 0) / frames });
+    report.pmdAFrames[s.item.label] = Array.from(perFrame);
   }
 }
 
