@@ -1,8 +1,9 @@
 // The web viewer (issue 16) end to end: `amt animate --html` writes a viewer folder, `amt view` serves
 // it (or GLB files) on 127.0.0.1, and headless Chromium, driven by viewer/check_page.mjs through
 // playwright-core, must load the animation, report its frames and meshes with no error and draw a
-// screenshot that is not blank; a broken GLB must be reported by the page as a failure. When Chromium
-// cannot start, the browser tests skip and say why (check_page.mjs exits 77).
+// screenshot that is not blank; a broken GLB must be reported by the page as a failure; a skinned
+// animation must play frame for frame as amt's linear blend skinning of it. When Chromium cannot start,
+// the browser tests skip and say why (check_page.mjs exits 77).
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -12,6 +13,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -21,7 +24,12 @@
 #include <vector>
 
 #include "data_tools/formats/gltf_export.h"
+#include "data_tools/formats/viewer_folder.h"
+#include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/motion.h"
+#include "data_tools/geometry/procedural_motion.h"
 #include "data_tools/geometry/shapes.h"
+#include "data_tools/geometry/skeleton.h"
 #include "tests/test_support.h"
 
 namespace amt {
@@ -202,6 +210,150 @@ TEST(ViewerBrowser, ABrokenGlbIsReportedAsAFailure) {
             std::string::npos)
       << r.err;
   EXPECT_NE(r.out.find("  error: files/0/broken.glb: cannot load: "), std::string::npos) << r.out;
+}
+
+// A character animated the way `amt animate` writes it by default: capsules on the canonical skeleton (each
+// vertex 0.7 on its bone's joint, 0.3 on that joint's parent) and a cape on two apparel handles (children of
+// spine3 and of the pelvis, swinging and drifting by their own rotations and translations), walking for 12
+// frames at 25 fps. `frames` receives amt's linear blend skinning of every frame, `mask` the cape.
+struct SkinnedWalk {
+  TriMesh mesh;
+  Skeleton skeleton;
+  SparseWeights weights;
+  NodeAnimation animation;
+  std::vector<MatrixX3f> frames;
+  std::vector<uint8_t> mask;
+};
+SkinnedWalk skinned_walk() {
+  SkinnedWalk w;
+  w.skeleton = canonical_skeleton();
+  std::vector<int32_t> joint_of_vertex;
+  const TriMesh body = capsule_character(w.skeleton.rest_joints, w.skeleton.parents, 1500, &joint_of_vertex);
+  constexpr int kColumns = 9, kRows = 11;
+  TriMesh cape = grid(kColumns, kRows, 0.06f);  // 0.48 m wide, 0.6 m long, from 1.40 m down, behind the back
+  for (int i = 0; i < cape.num_vertices(); ++i) {
+    cape.V.row(i) << cape.V(i, 0) - 0.24f, 1.40f - cape.V(i, 1), -0.16f;
+  }
+  w.mesh = merge_meshes({body, cape});
+  const int J = kCanonicalJointCount, N = w.mesh.num_vertices(), body_vertices = body.num_vertices();
+  w.skeleton.names.insert(w.skeleton.names.end(), {"apparel_handle_0000", "apparel_handle_0001"});
+  w.skeleton.parents.insert(w.skeleton.parents.end(), {kSpine3, kPelvis});
+  w.skeleton.rest_joints.conservativeResize(J + 2, 3);
+  w.skeleton.rest_joints.row(J) << 0.0f, 1.40f, -0.16f;
+  w.skeleton.rest_joints.row(J + 1) << 0.0f, 1.0f, -0.16f;
+  w.weights.indices.setZero(N, kMaxInfluences);
+  w.weights.weights.setZero(N, kMaxInfluences);
+  w.mask.assign(size_t(N), 0);
+  for (int i = 0; i < N; ++i) {
+    if (i < body_vertices) {
+      const int j = joint_of_vertex[size_t(i)], parent = w.skeleton.parents[size_t(j)];
+      w.weights.indices.row(i) << j, std::max(parent, 0), 0, 0;
+      w.weights.weights.row(i) << (parent < 0 ? 1.0f : 0.7f), (parent < 0 ? 0.0f : 0.3f), 0.0f, 0.0f;
+    } else {
+      const float down = float((i - body_vertices) / kColumns) / float(kRows - 1);
+      w.weights.indices.row(i) << J, J + 1, kSpine3, 0;
+      w.weights.weights.row(i) << 0.8f * (1.0f - down), 0.8f * down, 0.2f, 0.0f;
+      w.mask[size_t(i)] = 1;
+    }
+  }
+  const Skeleton body_skeleton = canonical_skeleton();
+  const Motion walk = walk_motion(12, 25.0f);
+  w.animation.fps = walk.fps;
+  w.animation.translated.assign(size_t(J + 2), 0);
+  w.animation.translated[0] = w.animation.translated[size_t(J)] = w.animation.translated[size_t(J + 1)] = 1;
+  for (int t = 0; t < walk.num_frames(); ++t) {
+    Transforms T = forward_kinematics(body_skeleton, walk, t);
+    for (int h = 0; h < 2; ++h) {  // the handles: a swing about x and a drift that their parents do not make
+      const int p = w.skeleton.parents[size_t(J + h)];
+      const Eigen::Matrix3f R = T[size_t(p)].leftCols<3>();
+      const float phase = 0.6f * float(t) + float(h);
+      const Eigen::Vector3f offset = (w.skeleton.rest_joints.row(J + h) - w.skeleton.rest_joints.row(p)).transpose() +
+                                     Eigen::Vector3f(0.0f, 0.02f * std::sin(phase), -0.05f * std::sin(phase));
+      const Eigen::Matrix3f swing =
+          Eigen::AngleAxisf(0.5f * std::sin(phase), Eigen::Vector3f::UnitX()).toRotationMatrix();
+      T.push_back(make_transform(R * swing, apply(T[size_t(p)], offset)));
+    }
+    append_node_frame(w.skeleton, T, w.animation);
+    MatrixX3f V;
+    linear_blend_skinning(w.mesh.V, w.weights, skinning_matrices(w.skeleton, T), V);
+    w.frames.push_back(V);
+  }
+  return w;
+}
+
+// A skinned-animation GLB (export_gltf_skinned_animation) beside the mesh sequence of amt's linear blend skinning
+// of it, as ground truth, in a viewer folder: the page plays the skinned file at 12 frames and 25 fps with its
+// apparel tint, and its readout against the sequence (PMD over every vertex, the sequence has no mask) is below
+// 1e-4 m at every frame and at the frames the page is opened on, as are the boxes: the page skins as amt does.
+// Showing the rest pose instead would read 2 cm or more at those frames (checked on the frames themselves).
+TEST(ViewerBrowser, ASkinnedAnimationPlaysFrameForFrameAsAmtSkinsIt) {
+  const fs::path dir = test::temp_dir("viewer_skinned") / "viewer";
+  const SkinnedWalk w = skinned_walk();
+  GltfExportOptions options;
+  options.apparel_mask = w.mask;
+  write_viewer_folder(dir.string(), (kRepository / "viewer").string(),
+                      {"skinned walk",
+                       {{"walk",
+                         {{"skinned.glb", "skinned animation", "prediction"},
+                          {"ground_truth.glb", "linear blend skinning", "ground_truth"}}}}});
+  export_gltf_skinned_animation((dir / "skinned.glb").string(), w.mesh, w.skeleton, w.weights, w.animation, options);
+  export_gltf_mesh_sequence((dir / "ground_truth.glb").string(), w.mesh.F, w.frames, w.animation.fps);
+  test::expect_valid_gltf(dir / "skinned.glb");
+  EXPECT_EQ(glb_json(dir / "skinned.glb")["asset"]["extras"]["amt_format"], "skinned-animation");
+  const std::vector<int> opened = {0, 5, 11};
+  for (const int k : opened) {
+    const float from_rest = (w.frames[size_t(k)] - w.mesh.V).rowwise().norm().mean();
+    EXPECT_GT(from_rest, 0.02f) << "frame " << k << " is too close to the rest pose to tell it from the skin";
+  }
+
+  if (!browser_tools_installed()) return;
+  const ViewServer server({dir.string()});
+  ASSERT_FALSE(server.url().empty()) << "amt view printed: " << server.printed();
+  std::string urls;
+  for (const int k : opened) urls += quoted(server.url() + "?paused=1&frame=" + std::to_string(k)) + " ";
+  const fs::path report_path = dir.parent_path() / "reports.json";
+  const test::CommandResult r = check_page(urls, "--meshes 2 --apparel --report " + quoted(report_path.string()));
+  bool skipped = false;
+  skip_or_fail_without_chromium(r, skipped);
+  if (skipped) GTEST_SKIP() << r.out;
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const long apparel = long(std::count(w.mask.begin(), w.mask.end(), 1));
+  EXPECT_NE(r.out.find("  skinned.glb (prediction): 12 frames, " + std::to_string(w.mesh.num_vertices()) +
+                       " vertices, " + std::to_string(apparel) + " apparel, 25 fps, skinned-animation"),
+            std::string::npos)
+      << r.out;
+  const nlohmann::json reports = nlohmann::json::parse(test::read_file_bytes(report_path));
+  ASSERT_EQ(reports.size(), opened.size()) << r.out;
+  for (size_t p = 0; p < opened.size(); ++p) {
+    const nlohmann::json& report = reports[p];
+    SCOPED_TRACE("page opened at frame " + std::to_string(opened[p]));
+    EXPECT_EQ(report["status"], "ready") << report["errors"];
+    EXPECT_EQ(report["errors"].size(), 0u) << report["errors"];
+    EXPECT_EQ(report["frame"], opened[p]);
+    EXPECT_EQ(report["frames"], 12);
+    const nlohmann::json& skinned = report["files"][0];
+    const nlohmann::json& sequence = report["files"][1];
+    EXPECT_EQ(skinned["format"], "skinned-animation");
+    EXPECT_EQ(skinned["frames"], 12);
+    EXPECT_EQ(skinned["fps"], 25);
+    EXPECT_EQ(skinned["joints"], kCanonicalJointCount + 2);
+    EXPECT_EQ(skinned["vertices"], w.mesh.num_vertices());
+    EXPECT_EQ(skinned["apparelVertices"], apparel);
+    EXPECT_EQ(sequence["format"], "mesh-sequence");
+    EXPECT_EQ(sequence["frames"], 12);
+    // The readout is in cm: 1e-4 m is 0.01.
+    ASSERT_TRUE(report["pmdA"].contains("skinned animation")) << report.dump();
+    EXPECT_LT(report["pmdA"]["skinned animation"].get<double>(), 0.01);
+    const nlohmann::json& per_frame = report["pmdAFrames"]["skinned animation"];
+    ASSERT_EQ(per_frame.size(), 12u) << report.dump();
+    for (size_t k = 0; k < per_frame.size(); ++k) EXPECT_LT(per_frame[k].get<double>(), 0.01) << "frame " << k;
+    for (const char* side : {"min", "max"}) {
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(skinned["box"][side][c].get<double>(), sequence["box"][side][c].get<double>(), 1e-4)
+            << "box " << side << " " << c;
+      }
+    }
+  }
 }
 
 TEST(ViewerFolder, AFolderOfTheUsersIsRefusedBeforeAnyWork) {
