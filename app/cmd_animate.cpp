@@ -40,8 +40,11 @@ void add_animate_command(CLI::App& app) {
                                 "Folder of the trained checkpoints (segmenter, skinning, apparel, refiner). " +
                                     repository_default_help(kDefaultModel));
   auto* out = cmd->add_option("--out", o->out,
-                              "Output: .glb (animated mesh), .h5 (dataset format, for amt eval) or a folder of OBJ "
-                              "files (optional with --html)");
+                              "Output: .glb (a skinned animation: the body on its joints, the apparel on handles), "
+                              ".h5 (dataset format, for amt eval) or a folder of OBJ files (optional with --html)");
+  cmd->add_flag("--vertex-cache", o->vertex_cache,
+                "Write the .glb as a per-frame vertex cache (every vertex exactly as computed, about 20 times "
+                "larger) instead of a skinned animation");
   auto* html = cmd->add_option("--html", o->html_dir,
                                "Also write a viewer folder: prediction.glb beside skinning.glb and the web page that "
                                "plays them (open it with amt view DIR)");

@@ -1,7 +1,12 @@
 #pragma once
 // The runtime's outputs, written frame by frame so that memory stays flat however long the motion:
-//   .glb   an animated mesh sequence (infer/glb_stream_writer.h, the layout of data_tools/formats/gltf_export.h),
-//          the apparel mask in use as its COLOR_0 tint
+//   .glb   with OutputInfo::skin: a skinned animation (export_gltf_skinned_animation,
+//   data_tools/formats/gltf_export.h):
+//          the canonical skeleton's joints move the body with its skinning weights (the 4 largest per vertex),
+//          and the apparel moves with handles, joints of their own under the body joints they hang from, whose
+//          transforms are fitted to each computed frame (data_tools/geometry/handle_fit.h); memory is the joints'
+//          transforms, 28 bytes per joint and frame. Without a skin: an animated mesh sequence (a vertex cache,
+//          infer/glb_stream_writer.h), the apparel mask in use as its COLOR_0 tint (so is the skinned one's)
 //   .h5    the dataset format (data_tools/formats/dataset_file.h): the character (rest mesh, canonical skeleton,
 //          the apparel mask in use, skinning weights) and one clip whose `vertices` are the predictions,
 //          so that `amt eval --predictions` can score it against the ground truth of the same names
@@ -18,11 +23,22 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/handle_fit.h"
+#include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/skeleton.h"
 #include "data_tools/geometry/types.h"
 
 namespace amt {
+
+/// A skinned .glb output's rig: the body's weights over the canonical joints (#V by 4; the rows of the apparel's
+/// vertices are not used), the apparel's handles, and per handle the canonical joint it hangs from (its node's
+/// parent).
+struct OutputSkin {
+  SparseWeights body;
+  HandleSkin apparel;
+  std::vector<int32_t> handle_parents;
+};
 
 /// What an output needs to know besides the frames.
 ///   character   name, rest mesh, canonical skeleton
@@ -38,6 +54,8 @@ struct OutputInfo {
   std::string clip = "clip", motion = "motion";
   int frames = 0;
   float fps = 30.0f;
+  /// A .glb is a skinned animation with this rig, a vertex cache without one.
+  std::shared_ptr<const OutputSkin> skin;
 };
 
 /// An output being written.
@@ -52,7 +70,9 @@ class FrameWriter {
   virtual int num_frames() const = 0;
 };
 
-/// "glb", "h5" or "obj" for an output path (by extension: .glb, .h5/.hdf5, else an OBJ folder).
+/// "glb", "h5", "vrm" or "obj" for an output path (by extension: .glb, .h5/.hdf5, .vrm, else an OBJ folder). A .vrm
+/// is written by `amt animate --apparel spring-bones` from a VRM avatar (infer/runtime_torch.cpp), not by
+/// open_frame_writer.
 /// Throws amt::Error for .gltf (use .glb) and for .obj (name a folder for the OBJ sequence).
 std::string output_kind(const std::string& path);
 

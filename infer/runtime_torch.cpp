@@ -16,6 +16,7 @@
 #include <optional>
 #include <sstream>
 
+#include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/render.h"
 #include "data_tools/formats/viewer_folder.h"
 #include "data_tools/geometry/error.h"
@@ -36,6 +37,56 @@ double seconds_since(Clock::time_point start) {
 std::vector<uint8_t> mask_vector(const at::Tensor& mask) {
   const at::Tensor m = mask.to(at::kByte).contiguous();
   return std::vector<uint8_t>(m.data_ptr<uint8_t>(), m.data_ptr<uint8_t>() + m.numel());
+}
+
+// The spacing of the handles a skinned output picks when the apparel path has none of its own (metres): the
+// shipped module's.
+constexpr double kOutputHandleSpacing = 0.04;
+
+// The rig of a skinned .glb output (infer/frame_writer.h) for mesh V (N by 3) with apparel `mask` and body weights
+// `weights` (N by J, rows summing to 1): handles picked along the apparel as the apparel module picks them
+// (apparel_rig on the linked topology) kOutputHandleSpacing apart, whatever moved the apparel; each hangs from the
+// joint its vertex weighs most. Measured (docs/runtime.md, "Skinned output"): on Godette these handles carry the
+// spring bones' frames to 0.08 cm at p95 where the rig's own 16 spring bones, merged into 8 handles, left 0.58 cm,
+// and the learned module's 2 cm handles would make a file 3 times larger for 0.14 against 0.32 cm.
+std::shared_ptr<const OutputSkin> output_skin(const TriMesh& mesh, const std::vector<uint8_t>& mask,
+                                              const MatrixXfR& weights) {
+  c10::InferenceMode inference;
+  const int64_t N = mesh.num_vertices();
+  AMT_CHECK(int64_t(mask.size()) == N && weights.rows() == N, "skinned output: expected a mask and weights of ", N,
+            " vertices, found ", mask.size(), " and ", weights.rows());
+  auto skin = std::make_shared<OutputSkin>();
+  skin->body = sparsify_weights(weights);
+  std::vector<int64_t> apparel, body;
+  for (int64_t v = 0; v < N; ++v) (mask[size_t(v)] ? apparel : body).push_back(v);
+  if (apparel.empty()) return skin;
+  const at::Tensor V = at::from_blob(const_cast<float*>(mesh.V.data()), {N, 3}, at::kFloat).clone();
+  const at::Tensor apparel_ids = at::tensor(apparel, at::kLong), body_ids = at::tensor(body, at::kLong);
+  const LinkedTopology topology = linked_topology(mesh.V, mesh.F, mask);
+  const at::Tensor edges =
+      at::from_blob(const_cast<int32_t*>(topology.edges.data()), {topology.edges.rows(), 2}, at::kInt).to(at::kLong);
+  const ApparelRig handles = apparel_rig(V, edges, apparel_ids, body_ids, handle_options(kOutputHandleSpacing));
+  const at::Tensor rows = handles.rows.to(at::kLong).contiguous();
+  const at::Tensor vh = handles.vertex_handles.to(at::kInt).contiguous();
+  const at::Tensor vw = handles.vertex_weights.to(at::kFloat).contiguous();
+  const int64_t Na = int64_t(apparel.size()), H = rows.size(0), K = vh.size(1);
+  AMT_CHECK(vh.size(0) == Na && vw.size(0) == Na, "skinned output: expected handles of ", Na,
+            " apparel vertices, found ", vh.size(0));
+  HandleSkin& a = skin->apparel;
+  a.vertices.assign(apparel.begin(), apparel.end());
+  a.handles = Eigen::Map<const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      vh.data_ptr<int32_t>(), Na, K);
+  a.weights = Eigen::Map<const MatrixXfR>(vw.data_ptr<float>(), Na, K);
+  a.rest.resize(H, 3);
+  skin->handle_parents.resize(size_t(H));
+  for (int64_t h = 0; h < H; ++h) {
+    const int64_t v = apparel[size_t(rows.data_ptr<int64_t>()[h])];
+    a.rest.row(h) = mesh.V.row(v);
+    Eigen::Index j = 0;
+    if (weights.row(v).maxCoeff(&j) <= 0) j = 0;
+    skin->handle_parents[size_t(h)] = int32_t(j);
+  }
+  return skin;
 }
 
 }  // namespace
@@ -361,6 +412,11 @@ StepPosition step_position(int t, double out_fps, double step_fps, int num_steps
   return p;
 }
 
+// True when --out is a .glb written as a skinned animation (not --vertex-cache).
+bool wants_skin(const AnimateOptions& o) {
+  return !o.out.empty() && !o.vertex_cache && output_kind(o.out) == "glb";
+}
+
 // The checks a simulated apparel path (--apparel physics, spring-bones) makes before any work: one output file, no
 // viewer folder, no input overwritten. Returns the summary it starts.
 AnimateSummary start_simulated_path(const AnimateOptions& o, const std::string& apparel) {
@@ -379,6 +435,8 @@ AnimateSummary start_simulated_path(const AnimateOptions& o, const std::string& 
 AnimateSummary animate_with_physics(const AnimateOptions& o) {
   const auto job_start = Clock::now();
   AnimateSummary s = start_simulated_path(o, "physics");
+  AMT_CHECK(output_kind(o.out) != "vrm", o.out, ": --out: expected .glb, .h5 or a folder with --apparel physics (a ",
+            ".vrm is written from a VRM avatar with --apparel spring-bones; amt convert turns a PMX model into one)");
   const std::string& path = o.character.spec;
   std::string e = std::filesystem::path(path).extension().string();
   std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
@@ -417,6 +475,7 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   OutputInfo info = output_info(character, source, s);
   info.apparel_mask = pmx.apparel_mask;
   info.weights = pmx_body_weights(pmx);
+  if (wants_skin(o)) info.skin = output_skin(character.mesh, info.apparel_mask, info.weights);
   std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
   // The physics steps on a clock of its own, kPhysicsStepFps (the motion resampled to it), whatever the output rate:
   // an output frame at 24, 30, 60 or 120 fps falls on a step and is that step's skinning, so the same clip gives
@@ -469,6 +528,53 @@ Transforms file_rest_pose(const RuntimeCharacter& character) {
                     make_transform(Eigen::Matrix3f::Identity(), Eigen::Vector3f::Zero()));
 }
 
+// A .vrm output of `--apparel spring-bones`: the avatar's own file written again (its VRM extensions, humanoid map,
+// spring bones, materials and textures as they were) with one clip that moves its own joints by the frames'
+// skinning transforms, the simulated spring joints among them (export_gltf_animated_copy). A VRM player that
+// simulates the springs itself starts from where amt left them.
+class AvatarWriter : public FrameWriter {
+ public:
+  AvatarWriter(const std::string& path, const std::string& source, const RuntimeCharacter& character,
+               const OutputInfo& info)
+      : path_(path),
+        asset_(read_gltf(source)),
+        file_(gltf_character(asset_)),
+        turned_(character.turned),
+        fps_(info.fps),
+        clip_(info.clip) {
+    AMT_CHECK(file_.skeleton.names == character.file_skeleton.names, path,
+              ": --out .vrm: expected the avatar's skeleton as read, found another (", file_.skeleton.num_joints(),
+              " joints against ", character.file_skeleton.num_joints(), ")");
+  }
+  /// The frame's skinning transforms of the file's joints (in amt's frame), before append().
+  void set_pose(const Transforms& M) {
+    pose_ = M;
+    if (!turned_) return;
+    // The avatar was turned half a turn about Y to face +Z: back to the file's frame, D M D with D = diag(-1, 1, -1).
+    const Eigen::Matrix3f D = Eigen::Vector3f(-1, 1, -1).asDiagonal();
+    for (Transform34& m : pose_) m = make_transform(D * m.leftCols<3>() * D, D * Eigen::Vector3f(m.col(3)));
+  }
+  void append(const MatrixX3f&, const Transforms&) override { frames_.push_back(pose_); }
+  std::string finish() override {
+    export_gltf_animated_copy(asset_, file_, frames_, fps_, clip_, path_);
+    char text[200];
+    std::snprintf(text, sizeof(text), ", %.1f MB, the avatar with its own %d joints animated (its VRM extensions kept)",
+                  double(std::filesystem::file_size(path_)) / 1e6, file_.skeleton.num_joints());
+    return path_ + text;
+  }
+  int num_frames() const override { return int(frames_.size()); }
+
+ private:
+  std::string path_;
+  GltfAsset asset_;
+  GltfCharacter file_;
+  bool turned_;
+  float fps_;
+  std::string clip_;
+  Transforms pose_;
+  std::vector<Transforms> frames_;
+};
+
 // `amt animate --apparel spring-bones`: a VRM avatar's own spring bones under the motion, as the VRM specification
 // simulates them, at a fixed internal step (kSpringStepSeconds) whatever the output frame rate. No network, no bind.
 AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
@@ -506,7 +612,16 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   info.apparel_mask = character.rig_apparel_mask;
   if (info.apparel_mask.size() != size_t(s.vertices)) info.apparel_mask.assign(size_t(s.vertices), 0);
   info.weights = canonical_file_weights(character);  // the file's weights on the canonical joints that carry them
-  std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
+  if (wants_skin(o)) info.skin = output_skin(character.mesh, info.apparel_mask, info.weights);
+  std::unique_ptr<FrameWriter> writer;
+  AvatarWriter* avatar = nullptr;
+  if (output_kind(o.out) == "vrm") {
+    auto w = std::make_unique<AvatarWriter>(o.out, o.character.spec, character, info);
+    avatar = w.get();
+    writer = std::move(w);
+  } else {
+    writer = open_frame_writer(o.out, info);
+  }
 
   // Settle under gravity for a second at the rest pose, then blend into the first frame over the lead-in, as the
   // PMX physics path does. The lead-in lasts lead_in / 30 seconds whatever the output frame rate (its frames
@@ -533,6 +648,7 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
                           [&](int t, const Transforms& T, MatrixX3f& V) {
                             const Transforms M =
                                 t == 0 ? first_output : springs.advance(file_pose(character, T), frame_seconds);
+                            if (avatar) avatar->set_pose(M);
                             linear_blend_skinning(character.mesh.V, character.file_weights, M, V);
                           });
   return s;
@@ -550,7 +666,12 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.output = o.out;
   s.apparel = "learned (the apparel module of " + o.model_dir + (o.refine ? ", then its refiner" : "") + ")";
   AMT_CHECK(!o.out.empty() || !o.html_dir.empty(), "--out: expected an output (or --html DIR), found none");
-  if (!o.out.empty()) output_kind(o.out);  // rejects .gltf / .obj names before any work
+  if (!o.out.empty()) {
+    // Rejects .gltf / .obj names before any work, and a .vrm (written by --apparel spring-bones only).
+    AMT_CHECK(output_kind(o.out) != "vrm", o.out, ": --out: expected .glb, .h5 or a folder with --apparel learned (a ",
+              ".vrm keeps the avatar's own skeleton, which the learned apparel's handles are not part of; --apparel ",
+              "spring-bones writes one)");
+  }
   check_outputs_are_not_inputs(o);
   // The viewer folder: refused before any work when it holds files amt did not write.
   const std::filesystem::path html(o.html_dir);
@@ -671,7 +792,13 @@ AnimateSummary animate(const AnimateOptions& o) {
   info.apparel_mask = session.apparel_mask();
   info.weights = output_weights(session.bound());
   std::unique_ptr<FrameWriter> writer, html_prediction, html_skinning;
-  if (!o.out.empty()) writer = open_frame_writer(o.out, info);
+  if (!o.out.empty()) {
+    OutputInfo out_info = info;
+    if (wants_skin(o)) {
+      out_info.skin = output_skin(character.mesh, info.apparel_mask, info.weights);
+    }
+    writer = open_frame_writer(o.out, out_info);
+  }
   MatrixXfR skinning_weights;
   if (!o.html_dir.empty()) {
     html_prediction = open_frame_writer(prediction_glb, info);

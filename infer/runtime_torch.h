@@ -120,6 +120,10 @@ struct AnimateOptions {
   /// "rig" (the character's own skin: canonical_file_weights; an error without one).
   std::string skin_weights = "auto";
   std::string html_dir, viewer_dir;
+  /// A .glb output as a per-frame vertex cache (`--vertex-cache`: every vertex of every frame, exactly as
+  /// computed) instead of a skinned animation (the canonical joints and the apparel's handles, fitted to each
+  /// frame; infer/frame_writer.h).
+  bool vertex_cache = false;
   PlaybackOptions playback;
   bool resolve_penetration = true;
   /// Run the joint refiner after the apparel module (`--refiner`). Off by default: measured on the held-out

@@ -187,6 +187,25 @@ void check_fps(float fps, const std::string& path) {
   AMT_CHECK(std::isfinite(fps) && fps > 0.0f, path, ": fps: expected a positive frame rate, found ", fps);
 }
 
+// The COLOR_0 tint of `mask` (#V entries 0/1) on `primitive`, and its record in asset.extras.
+void add_apparel_tint(ModelBuilder& builder, tinygltf::Primitive& primitive, const std::vector<uint8_t>& mask,
+                      int num_vertices, const std::string& path) {
+  if (mask.empty()) return;
+  AMT_CHECK(mask.size() == size_t(num_vertices), path, ": apparel mask: expected ", num_vertices, " entries, found ",
+            mask.size());
+  tinygltf::Model& model = builder.model();
+  const std::vector<uint8_t> colors = apparel_vertex_colors(mask, path);
+  tinygltf::Accessor color;
+  color.bufferView = builder.add_view(colors.data(), colors.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+  color.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  color.normalized = true;
+  color.type = TINYGLTF_TYPE_VEC4;
+  color.count = size_t(num_vertices);
+  model.accessors.push_back(color);
+  primitive.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+  builder.set_apparel_record(int(std::count(mask.begin(), mask.end(), 1)));
+}
+
 }  // namespace
 
 // === Mesh sequence
@@ -225,20 +244,7 @@ void export_gltf_mesh_sequence(const std::string& path, const MatrixX3i& F, cons
   primitive.attributes["POSITION"] =
       builder.add_floats(rows_to_floats(frames[0]), TINYGLTF_TYPE_VEC3, 3, TINYGLTF_TARGET_ARRAY_BUFFER, true);
   primitive.indices = add_indices(builder, F, N);
-  if (!options.apparel_mask.empty()) {
-    AMT_CHECK(options.apparel_mask.size() == size_t(N), path, ": apparel mask: expected ", N, " entries, found ",
-              options.apparel_mask.size());
-    const std::vector<uint8_t> colors = apparel_vertex_colors(options.apparel_mask, path);
-    tinygltf::Accessor color;
-    color.bufferView = builder.add_view(colors.data(), colors.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
-    color.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-    color.normalized = true;
-    color.type = TINYGLTF_TYPE_VEC4;
-    color.count = size_t(N);
-    model.accessors.push_back(color);
-    primitive.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
-    builder.set_apparel_record(int(std::count(options.apparel_mask.begin(), options.apparel_mask.end(), 1)));
-  }
+  add_apparel_tint(builder, primitive, options.apparel_mask, N, path);
   tinygltf::Mesh mesh;
   mesh.name = options.name;
   tinygltf::Value::Array target_names;
@@ -301,15 +307,24 @@ void export_gltf_mesh_sequence(const std::string& path, const MatrixX3i& F, cons
   write_model(path, builder, container_for(path, options));
 }
 
-// === Rigged character
+// === Skinned characters
 
-void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton,
-                        const SparseWeights& weights, const Motion& motion, const GltfExportOptions& options) {
+namespace {
+
+// A skinned character animated by node transforms, with asset.extras.amt_format `format` (the construction at the
+// top of data_tools/formats/gltf_export.h).
+void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton, const SparseWeights& weights,
+                   const NodeAnimation& animation, const GltfExportOptions& options, const char* format,
+                   bool short_rotations) {
   validate_mesh(mesh, path + ": mesh");
   validate_skeleton(skeleton, path + ": skeleton");
-  validate_motion(motion, skeleton, path + ": motion");
-  AMT_CHECK(motion.num_frames() >= 1, path, ": motion: expected at least 1 frame, found none");
-  const int N = mesh.num_vertices(), J = skeleton.num_joints(), T = motion.num_frames();
+  check_fps(animation.fps, path);
+  const int N = mesh.num_vertices(), J = skeleton.num_joints();
+  const int T = animation.num_frames(J);
+  AMT_CHECK(T >= 1 && animation.rotations.size() == size_t(T) * size_t(J) &&
+                animation.translations.size() == animation.rotations.size() && animation.translated.size() == size_t(J),
+            path, ": animation: expected T x ", J, " rotations and translations and ", J, " translation flags, found ",
+            animation.rotations.size(), ", ", animation.translations.size(), " and ", animation.translated.size());
   AMT_CHECK(weights.num_vertices() == N && weights.weights.rows() == N, path, ": weights: expected ", N,
             " rows (one per vertex), found ", weights.num_vertices());
   AMT_CHECK(J <= 65536, path, ": skeleton: expected at most 65536 joints, found ", J);
@@ -346,7 +361,7 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
   }
 
   ModelBuilder builder;
-  builder.set_format("rigged-character", motion.fps);
+  builder.set_format(format, animation.fps);
   tinygltf::Model& model = builder.model();
   tinygltf::Primitive primitive;
   primitive.mode = TINYGLTF_MODE_TRIANGLES;
@@ -358,6 +373,7 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
   primitive.attributes["WEIGHTS_0"] =
       builder.add_floats(joint_weights, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
   primitive.indices = add_indices(builder, mesh.F, N);
+  add_apparel_tint(builder, primitive, options.apparel_mask, N, path);
   tinygltf::Mesh gltf_mesh;
   gltf_mesh.name = options.name;
   gltf_mesh.primitives.push_back(primitive);
@@ -373,6 +389,7 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
   tinygltf::Skin skin;
   skin.name = "amt_skeleton";
   skin.skeleton = 1;
+  std::vector<int> roots;
   for (int j = 0; j < J; ++j) {
     const int p = skeleton.parents[size_t(j)];
     const Eigen::Vector3f rest = skeleton.rest_joints.row(j).transpose();
@@ -381,7 +398,11 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
     joint.name = skeleton.names[size_t(j)];
     joint.translation = {offset.x(), offset.y(), offset.z()};
     model.nodes.push_back(joint);
-    if (p >= 0) model.nodes[size_t(p) + 1].children.push_back(j + 1);
+    if (p >= 0) {
+      model.nodes[size_t(p) + 1].children.push_back(j + 1);
+    } else {
+      roots.push_back(j + 1);
+    }
     skin.joints.push_back(j + 1);
     float* m = &inverse_binds[size_t(j) * 16];  // column-major translate(-J_j)
     m[0] = m[5] = m[10] = m[15] = 1.0f;
@@ -390,35 +411,112 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
   skin.inverseBindMatrices = builder.add_floats(inverse_binds, TINYGLTF_TYPE_MAT4, 16, 0, false);
   model.skins.push_back(skin);
 
-  // Animation: local rotations of every joint, root position.
-  tinygltf::Animation animation;
-  animation.name = options.clip;
-  const int input = builder.add_floats(keyframe_times(T, motion.fps), TINYGLTF_TYPE_SCALAR, 1, 0, true);
+  tinygltf::Animation clip;
+  clip.name = options.clip;
+  const int input = builder.add_floats(keyframe_times(T, animation.fps), TINYGLTF_TYPE_SCALAR, 1, 0, true);
   for (int j = 0; j < J; ++j) {
     std::vector<float> rotations(size_t(T) * 4);
     for (int t = 0; t < T; ++t) {
-      const Eigen::Quaternionf q = motion.rotation(t, j).normalized();
+      const Eigen::Quaternionf& q = animation.rotations[size_t(t) * size_t(J) + size_t(j)];
+      AMT_CHECK(q.coeffs().allFinite() && q.norm() > 0.5f, path, ": animation: expected a unit rotation of joint ",
+                skeleton.names[size_t(j)], " at frame ", t, ", found (", q.x(), ", ", q.y(), ", ", q.z(), ", ", q.w(),
+                ")");
+      const Eigen::Quaternionf u = q.normalized();
       float* r = &rotations[size_t(t) * 4];
-      r[0] = q.x(), r[1] = q.y(), r[2] = q.z(), r[3] = q.w();
+      r[0] = u.x(), r[1] = u.y(), r[2] = u.z(), r[3] = u.w();
     }
-    const int output = builder.add_floats(rotations, TINYGLTF_TYPE_VEC4, 4, 0, false);
-    ModelBuilder::add_channel(animation, input, output, j + 1, "rotation");
-  }
-  std::vector<float> root_positions(size_t(T) * 3);
-  for (int t = 0; t < T; ++t) {
-    for (int c = 0; c < 3; ++c) {
-      root_positions[size_t(t) * 3 + size_t(c)] = skeleton.rest_joints(0, c) + motion.root_translation(t, c);
+    int output = -1;
+    if (short_rotations) {
+      // Normalized SHORT components (glTF 2.0 section 3.11: c = round(f 32767)), half the bytes of floats; a
+      // rotation is off by at most about 3e-5 rad.
+      std::vector<int16_t> packed(rotations.size());
+      for (size_t k = 0; k < rotations.size(); ++k) packed[k] = int16_t(std::lround(rotations[k] * 32767.0f));
+      tinygltf::Accessor acc;
+      acc.bufferView = builder.add_view(packed.data(), packed.size() * sizeof(int16_t), 0);
+      acc.componentType = TINYGLTF_COMPONENT_TYPE_SHORT;
+      acc.normalized = true;
+      acc.type = TINYGLTF_TYPE_VEC4;
+      acc.count = size_t(T);
+      model.accessors.push_back(acc);
+      output = int(model.accessors.size()) - 1;
+    } else {
+      output = builder.add_floats(rotations, TINYGLTF_TYPE_VEC4, 4, 0, false);
     }
+    ModelBuilder::add_channel(clip, input, output, j + 1, "rotation");
+    if (!animation.translated[size_t(j)]) continue;
+    std::vector<float> translations(size_t(T) * 3);
+    for (int t = 0; t < T; ++t) {
+      const Eigen::Vector3f& x = animation.translations[size_t(t) * size_t(J) + size_t(j)];
+      AMT_CHECK(x.allFinite(), path, ": animation: expected a finite translation of joint ", skeleton.names[size_t(j)],
+                " at frame ", t);
+      for (int c = 0; c < 3; ++c) translations[size_t(t) * 3 + size_t(c)] = x(c);
+    }
+    ModelBuilder::add_channel(clip, input, builder.add_floats(translations, TINYGLTF_TYPE_VEC3, 3, 0, false), j + 1,
+                              "translation");
   }
-  const int root_output = builder.add_floats(root_positions, TINYGLTF_TYPE_VEC3, 3, 0, false);
-  ModelBuilder::add_channel(animation, input, root_output, 1, "translation");
-  model.animations.push_back(animation);
+  model.animations.push_back(clip);
 
   tinygltf::Scene scene;
-  scene.nodes = {0, 1};
+  scene.nodes = {0};
+  scene.nodes.insert(scene.nodes.end(), roots.begin(), roots.end());
   model.scenes.push_back(scene);
   model.defaultScene = 0;
   write_model(path, builder, container_for(path, options));
+}
+
+}  // namespace
+
+void append_node_frame(const Skeleton& skeleton, const Transforms& joint_transforms, NodeAnimation& animation) {
+  const int J = skeleton.num_joints();
+  AMT_CHECK(joint_transforms.size() == size_t(J), "append_node_frame: expected ", J, " joint transforms, found ",
+            joint_transforms.size());
+  for (int j = 0; j < J; ++j) {
+    const int p = skeleton.parents[size_t(j)];
+    const Eigen::Matrix3f R = joint_transforms[size_t(j)].leftCols<3>();
+    const Eigen::Vector3f t = joint_transforms[size_t(j)].col(3);
+    if (p < 0) {
+      animation.rotations.emplace_back(R);
+      animation.translations.push_back(t);
+      continue;
+    }
+    const Eigen::Matrix3f Rp = joint_transforms[size_t(p)].leftCols<3>();
+    const Eigen::Vector3f tp = joint_transforms[size_t(p)].col(3);
+    animation.rotations.emplace_back(Eigen::Matrix3f(Rp.transpose() * R));
+    animation.translations.push_back(Rp.transpose() * (t - tp));
+  }
+}
+
+void export_gltf_skinned_animation(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton,
+                                   const SparseWeights& weights, const NodeAnimation& animation,
+                                   const GltfExportOptions& options) {
+  write_skinned(path, mesh, skeleton, weights, animation, options, "skinned-animation", true);
+}
+
+// === Rigged character
+
+void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton,
+                        const SparseWeights& weights, const Motion& motion, const GltfExportOptions& options) {
+  validate_skeleton(skeleton, path + ": skeleton");
+  validate_motion(motion, skeleton, path + ": motion");
+  AMT_CHECK(motion.num_frames() >= 1, path, ": motion: expected at least 1 frame, found none");
+  // The Motion's local rotations, unchanged, and the root's position J_0 + root_translation.
+  const int J = skeleton.num_joints(), T = motion.num_frames();
+  NodeAnimation animation;
+  animation.fps = motion.fps;
+  animation.translated.assign(size_t(J), 0);
+  for (int j = 0; j < J; ++j) animation.translated[size_t(j)] = skeleton.parents[size_t(j)] < 0;
+  for (int t = 0; t < T; ++t) {
+    for (int j = 0; j < J; ++j) {
+      animation.rotations.push_back(motion.rotation(t, j));
+      animation.translations.push_back(skeleton.rest_joints.row(j).transpose());
+      if (j == 0) {
+        for (int c = 0; c < 3; ++c) animation.translations.back()(c) += motion.root_translation(t, c);
+      }
+    }
+  }
+  GltfExportOptions rigged = options;
+  rigged.apparel_mask.clear();
+  write_skinned(path, mesh, skeleton, weights, animation, rigged, "rigged-character", false);
 }
 
 }  // namespace amt

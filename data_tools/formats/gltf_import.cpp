@@ -20,8 +20,11 @@
 #include <nlohmann/json.hpp>
 #include <queue>
 #include <set>
+#include <sstream>
+#include <tuple>
 #include <unordered_set>
 
+#include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/geometry/error.h"
 
@@ -2070,6 +2073,120 @@ SpringRig gltf_vrm_spring_rig(const GltfAsset& asset, const GltfCharacter& chara
             [](const SpringJoint& x, const SpringJoint& y) { return x.joint < y.joint; });
   validate_spring_rig(rig, character.skeleton, src);
   return rig;
+}
+
+}  // namespace amt
+
+// === Writing an asset back with an animation
+
+namespace amt {
+
+void export_gltf_animated_copy(const GltfAsset& source, const GltfCharacter& character,
+                               const std::vector<Transforms>& frames, float fps, const std::string& clip,
+                               const std::string& path) {
+  const GltfAsset::Impl& a = source.impl();
+  const int J = character.skeleton.num_joints();
+  const size_t N = a.model.nodes.size();
+  AMT_CHECK(!frames.empty(), path, ": frames: expected at least one frame, found none");
+  AMT_CHECK(std::isfinite(fps) && fps > 0.0f, path, ": fps: expected a positive frame rate, found ", fps);
+  AMT_CHECK(int(character.joint_nodes.size()) == J, path, ": character: expected one node per joint (", J, "), found ",
+            character.joint_nodes.size());
+  std::vector<int> joint_of_node(N, -1);
+  for (int j = 0; j < J; ++j) {
+    const int n = character.joint_nodes[size_t(j)];
+    if (n >= 0 && size_t(n) < N) joint_of_node[size_t(n)] = j;
+  }
+  AMT_CHECK(a.model.buffers.size() <= 1, path, ": expected an asset with one buffer (a .glb or .vrm), found ",
+            a.model.buffers.size(), " buffers");
+  tinygltf::Model model = a.model;
+  model.animations.clear();
+  tinygltf::Buffer& buffer = model.buffers.empty() ? model.buffers.emplace_back() : model.buffers[0];
+  auto add_accessor = [&](const std::vector<float>& values, int type, int components, bool bounds) {
+    buffer.data.resize((buffer.data.size() + 3) / 4 * 4, 0);
+    tinygltf::BufferView view;
+    view.buffer = 0;
+    view.byteOffset = buffer.data.size();
+    view.byteLength = values.size() * sizeof(float);
+    const auto* p = reinterpret_cast<const unsigned char*>(values.data());
+    buffer.data.insert(buffer.data.end(), p, p + view.byteLength);
+    model.bufferViews.push_back(view);
+    tinygltf::Accessor acc;
+    acc.bufferView = int(model.bufferViews.size()) - 1;
+    acc.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    acc.type = type;
+    acc.count = values.size() / size_t(components);
+    if (bounds) {
+      acc.minValues = {double(*std::min_element(values.begin(), values.end()))};
+      acc.maxValues = {double(*std::max_element(values.begin(), values.end()))};
+    }
+    model.accessors.push_back(acc);
+    return int(model.accessors.size()) - 1;
+  };
+  // Per frame, every node's global transform: a joint's is its skinning transform times its rest global transform,
+  // any other node keeps its rest place under its parent; each animated node's local transform follows.
+  const size_t T = frames.size();
+  std::vector<std::vector<float>> rotations(N), translations(N);
+  Matrices4d world(N);
+  for (size_t t = 0; t < T; ++t) {
+    AMT_CHECK(frames[t].size() == size_t(J), path, ": frame ", t, ": expected ", J, " transforms, found ",
+              frames[t].size());
+    for (const int n : a.node_order) {
+      const int p = a.parent[size_t(n)];
+      const int j = joint_of_node[size_t(n)];
+      if (j >= 0) {
+        Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+        M.topRows<3>() = frames[t][size_t(j)].cast<double>();
+        AMT_CHECK(M.allFinite(), path, ": frame ", t, ": expected finite transforms, found one at joint ",
+                  character.skeleton.names[size_t(j)]);
+        world[size_t(n)] = M * a.rest_world[size_t(n)];
+        const Eigen::Matrix4d local =
+            p < 0 ? world[size_t(n)] : Eigen::Matrix4d(world[size_t(p)].inverse() * world[size_t(n)]);
+        // The rotation of the local matrix (its rest scale divided out by the polar decomposition).
+        const Eigen::JacobiSVD<Eigen::Matrix3d> svd(local.topLeftCorner<3, 3>(),
+                                                    Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
+        if (R.determinant() < 0) R = -R;
+        const Eigen::Quaterniond q(R);
+        for (const double c : {q.x(), q.y(), q.z(), q.w()}) rotations[size_t(n)].push_back(float(c));
+        for (int c = 0; c < 3; ++c) translations[size_t(n)].push_back(float(local(c, 3)));
+      } else {
+        const NodeRest& r = a.rest[size_t(n)];
+        const Eigen::Matrix4d local = r.has_matrix ? r.matrix : trs_matrix(r.translation, r.rotation, r.scale);
+        world[size_t(n)] = p < 0 ? local : Eigen::Matrix4d(world[size_t(p)] * local);
+      }
+    }
+  }
+  std::vector<float> times(T);
+  for (size_t t = 0; t < T; ++t) times[t] = float(double(t) / double(fps));
+  tinygltf::Animation animation;
+  animation.name = clip;
+  const int input = add_accessor(times, TINYGLTF_TYPE_SCALAR, 1, true);
+  for (size_t n = 0; n < N; ++n) {
+    if (joint_of_node[n] < 0) continue;
+    AMT_CHECK(!a.rest[n].has_matrix, path, ": node ", n, " (", a.model.nodes[n].name, "): expected a joint with ",
+              "translation, rotation and scale, found a matrix, which glTF does not animate");
+    for (const auto& [values, type, components, target] :
+         {std::tuple{&rotations[n], TINYGLTF_TYPE_VEC4, 4, "rotation"},
+          std::tuple{&translations[n], TINYGLTF_TYPE_VEC3, 3, "translation"}}) {
+      tinygltf::AnimationSampler sampler;
+      sampler.input = input;
+      sampler.output = add_accessor(*values, type, components, false);
+      sampler.interpolation = "LINEAR";
+      animation.samplers.push_back(sampler);
+      tinygltf::AnimationChannel channel;
+      channel.sampler = int(animation.samplers.size()) - 1;
+      channel.target_node = int(n);
+      channel.target_path = target;
+      animation.channels.push_back(channel);
+    }
+  }
+  model.animations.push_back(animation);
+  buffer.uri.clear();
+  std::ostringstream stream;
+  tinygltf::TinyGLTF writer;
+  AMT_CHECK(writer.WriteGltfSceneToStream(&model, stream, false, true), path,
+            ": write: expected tinygltf to serialise the model, found an error");
+  write_file_atomically(path, stream.str());
 }
 
 }  // namespace amt

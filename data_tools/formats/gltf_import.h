@@ -219,4 +219,18 @@ struct GltfVertexAnimation {
 /// when the scene has no mesh or frames x vertices exceeds 200 000 000.
 GltfVertexAnimation gltf_vertex_animation(const GltfAsset& asset, const std::string& clip = "", float fps = 30.0f);
 
+// === Writing an asset back with an animation
+
+/// Writes `source` again as a GLB at `path` (a .vrm name keeps it a VRM: every extension, material, texture,
+/// mesh, skin and node is copied as read) with its animations replaced by one clip `clip` of frames at `fps`:
+/// frame t moves joint j of `character.skeleton` by its skinning transform frames[t][j] (rest -> posed, in the
+/// file's frame), so that the file's own skinning plays what linear blend skinning of `character.mesh` with those
+/// transforms gives. Each joint's node gets rotation and translation channels (its local transform under its
+/// parent's posed one, the rest scale kept); other nodes keep their rest place under their parents. Written to
+/// "<path>.amt-tmp" and renamed. Throws amt::Error for an asset with several buffers, a joint node given as a matrix,
+/// frames of the wrong size or non-finite transforms, fps <= 0, or a failed write.
+void export_gltf_animated_copy(const GltfAsset& source, const GltfCharacter& character,
+                               const std::vector<Transforms>& frames, float fps, const std::string& clip,
+                               const std::string& path);
+
 }  // namespace amt

@@ -99,18 +99,22 @@ int stop_mid_run(const std::vector<std::string>& args, const std::string& log, i
 // A long motion: the longest CMU clip of data/ resampled to 1000 fps (about 15000 frames).
 const std::string kLongMotion = std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_05.bvh";
 
+// The streaming vertex cache (--vertex-cache) writes its frames to a temporary as they come: a signal mid-run
+// removes it. (A skinned GLB keeps its joints' transforms in memory and writes nothing before the end.)
 TEST(AnimateCli, SigtermMidRunRemovesTheTemporariesAndKeepsTheGoodOutput) {
   const test::RuntimeFixture f = test::make_runtime_fixture("cli_sigterm");
   const std::string out = (f.dir / "walk.glb").string();
-  const test::CommandResult first = test::run_command(shell_command(animate_args(f, f.data + ":walk0", out)));
+  const test::CommandResult first =
+      test::run_command(shell_command(animate_args(f, f.data + ":walk0", out, {"--vertex-cache"})));
   ASSERT_EQ(first.status, 0) << first.err;
   const std::string good = test::read_file_bytes(out);
   ASSERT_GT(good.size(), 100u);
   const std::string log = (f.dir / "log.txt").string();
-  const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, SIGTERM, [&] {
-    std::error_code e;
-    return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
-  });
+  const int code =
+      stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000", "--vertex-cache"}), log, SIGTERM, [&] {
+        std::error_code e;
+        return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
+      });
   EXPECT_EQ(code, 128 + SIGTERM) << test::read_file_bytes(log);
   EXPECT_NE(test::read_file_bytes(log).find("amt: stopped by SIGTERM; removed 1 temporary file"), std::string::npos)
       << test::read_file_bytes(log);
@@ -126,10 +130,11 @@ TEST(AnimateCli, SighupAndSigquitMidRunRemoveTheTemporaries) {
   for (const int signal : {SIGHUP, SIGQUIT}) {
     const std::string name = signal == SIGHUP ? "SIGHUP" : "SIGQUIT";
     const std::string log = (f.dir / (name + ".txt")).string();
-    const int code = stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000"}), log, signal, [&] {
-      std::error_code e;
-      return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
-    });
+    const int code =
+        stop_mid_run(animate_args(f, kLongMotion, out, {"--fps", "1000", "--vertex-cache"}), log, signal, [&] {
+          std::error_code e;
+          return fs::file_size(out + ".frames.amt-tmp", e) > 0 && !e;
+        });
     EXPECT_EQ(code, 128 + signal) << test::read_file_bytes(log);
     EXPECT_NE(test::read_file_bytes(log).find("amt: stopped by " + name + "; removed 1 temporary file"),
               std::string::npos)
@@ -182,8 +187,9 @@ TEST(AnimateCli, AFullDiskGivesOneLineErrorsAndLeavesNoTemporary) {
       {"bound.glb", (d / "walk.bind").string(),
        (d / "walk.bind.amt-tmp").string() + ": write: expected the whole bind cache written, found an error"}};
   for (const Case& c : cases) {
-    const test::CommandResult r = test::run_command(
-        full_disk + shell_command(animate_args(f, f.data + ":walk0", (d / c.out).string(), {"--bind", c.bind})));
+    const test::CommandResult r =
+        test::run_command(full_disk + shell_command(animate_args(f, f.data + ":walk0", (d / c.out).string(),
+                                                                 {"--bind", c.bind, "--vertex-cache"})));
     EXPECT_EQ(r.status, 1) << c.out << ": " << r.err;
     EXPECT_EQ(r.err.rfind("amt: error: " + c.expected, 0), 0u) << c.out << ": " << r.err;
     EXPECT_NE(r.err.find("File too large"), std::string::npos) << c.out << ": " << r.err;
