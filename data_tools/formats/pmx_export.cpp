@@ -114,8 +114,11 @@ int64_t vertex_capacity(int size) {
   return size == 1 ? 0x100 : size == 2 ? 0x10000 : int64_t(0x80000000);
 }
 
-// One material and no textures are written (see the top of pmx_export.h).
-constexpr int kMaterialCount = 1;
+// The model's materials, or, for a model without any, one material drawing every face (see the top of
+// pmx_export.h).
+int64_t written_material_count(const PmxModel& m) {
+  return std::max<int64_t>(1, static_cast<int64_t>(m.materials.size()));
+}
 
 // `s` names the model in messages.
 void check_encodable(const PmxModel& m, const std::string& s) {
@@ -134,8 +137,8 @@ void check_encodable(const PmxModel& m, const std::string& s) {
     bool is_vertex;
   } tables[] = {
       {"header.vertex_index_size", h.vertex_index_size, m.vertices.size(), true},
-      {"header.texture_index_size", h.texture_index_size, 0, false},
-      {"header.material_index_size", h.material_index_size, kMaterialCount, false},
+      {"header.texture_index_size", h.texture_index_size, static_cast<int64_t>(m.textures.size()), false},
+      {"header.material_index_size", h.material_index_size, written_material_count(m), false},
       {"header.bone_index_size", h.bone_index_size, static_cast<int64_t>(m.bones.size()), false},
       {"header.morph_index_size", h.morph_index_size, 0, false},
       {"header.rigid_body_index_size", h.rigid_body_index_size, static_cast<int64_t>(m.rigid_bodies.size()), false},
@@ -279,26 +282,51 @@ class PmxWriter {
     }
   }
 
-  // No textures; one material drawing every face.
+  // The model's textures and materials; without materials, one drawing every face.
   void textures_and_materials() {
-    count("textures", 0);
-    count("materials", kMaterialCount);
-    out_.text("材質1");
-    out_.text("material");
-    for (float c : {0.8f, 0.8f, 0.8f, 1.0f}) out_.f32(c);  // diffuse RGBA
-    for (float c : {0.0f, 0.0f, 0.0f}) out_.f32(c);        // specular RGB
-    out_.f32(5);                                           // specular strength
-    for (float c : {0.4f, 0.4f, 0.4f}) out_.f32(c);        // ambient RGB
-    out_.u8(0x0F);  // double-sided, ground shadow, casts and receives self-shadow; no edge
-    for (float c : {0.0f, 0.0f, 0.0f, 1.0f}) out_.f32(c);  // edge colour RGBA
-    out_.f32(1);                                           // edge size
-    out_.index(-1, h_.texture_index_size, {"materials", 0, "texture"});
-    out_.index(-1, h_.texture_index_size, {"materials", 0, "sphere_texture"});
-    out_.u8(0);  // sphere mode: none
-    out_.u8(1);  // shared toon
-    out_.u8(0);  // toon01.bmp
-    out_.text("");
-    out_.i32(static_cast<int32_t>(3 * m_.faces.rows()));
+    count("textures", m_.textures.size());
+    for (const std::string& path : m_.textures) out_.text(path);
+    if (!m_.materials.empty()) {
+      count("materials", m_.materials.size());
+      for (size_t i = 0; i < m_.materials.size(); ++i) material(m_.materials[i], static_cast<int64_t>(i));
+      return;
+    }
+    PmxMaterial grey;  // double-sided, ground shadow, casts and receives self-shadow; no edge; MMD's shared toon 1
+    grey.name = "材質1";
+    grey.name_english = "material";
+    grey.diffuse = {0.8f, 0.8f, 0.8f, 1.0f};
+    grey.specular_strength = 5;
+    grey.ambient = {0.4f, 0.4f, 0.4f};
+    grey.flags = 0x0F;
+    grey.edge_colour = {0.0f, 0.0f, 0.0f, 1.0f};
+    grey.edge_size = 1;
+    grey.shared_toon = true;
+    grey.toon = 0;  // toon01.bmp
+    grey.face_count = static_cast<int32_t>(m_.faces.rows());
+    count("materials", 1);
+    material(grey, 0);
+  }
+
+  void material(const PmxMaterial& m, int64_t i) {
+    names(m);
+    for (int c = 0; c < 4; ++c) out_.f32(m.diffuse[c]);
+    out_.vec3(m.specular);
+    out_.f32(m.specular_strength);
+    out_.vec3(m.ambient);
+    out_.u8(m.flags);
+    for (int c = 0; c < 4; ++c) out_.f32(m.edge_colour[c]);
+    out_.f32(m.edge_size);
+    out_.index(m.texture, h_.texture_index_size, {"materials", i, "texture"});
+    out_.index(m.sphere_texture, h_.texture_index_size, {"materials", i, "sphere_texture"});
+    out_.u8(static_cast<uint8_t>(m.sphere_mode));
+    out_.u8(m.shared_toon ? 1 : 0);
+    if (m.shared_toon) {
+      out_.u8(static_cast<uint8_t>(m.toon));
+    } else {
+      out_.index(m.toon, h_.texture_index_size, {"materials", i, "toon"});
+    }
+    out_.text(m.memo);
+    out_.i32(static_cast<int32_t>(3 * static_cast<int64_t>(m.face_count)));
   }
 
   void bones() {
@@ -445,8 +473,8 @@ void pmx_fit_index_sizes(PmxModel& model) {
   PmxHeader& h = model.header;
   const int64_t vertices = model.vertices.size();
   h.vertex_index_size = vertices <= vertex_capacity(1) ? 1 : vertices <= vertex_capacity(2) ? 2 : 4;
-  h.texture_index_size = signed_size(0);
-  h.material_index_size = signed_size(kMaterialCount);
+  h.texture_index_size = signed_size(static_cast<int64_t>(model.textures.size()));
+  h.material_index_size = signed_size(written_material_count(model));
   h.bone_index_size = signed_size(static_cast<int64_t>(model.bones.size()));
   h.morph_index_size = signed_size(0);
   h.rigid_body_index_size = signed_size(static_cast<int64_t>(model.rigid_bodies.size()));

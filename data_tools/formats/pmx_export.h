@@ -1,15 +1,16 @@
 #pragma once
 // PMX 2.0 / 2.1 writer: the inverse of data_tools/formats/pmx_import.h for every field a PmxModel holds (header
-// names, vertices with their BDEF1 / BDEF2 / BDEF4 / SDEF / QDEF weights as the model has them, faces, bones with
-// parents, flags, tails, inheritance, axes and IK, rigid bodies, joints). Real MMD characters cannot be shipped
-// with amt, so the tests and `amt dataset export-pmx` make their PMX files with it.
+// names, vertices with their BDEF1 / BDEF2 / BDEF4 / SDEF / QDEF weights as the model has them, faces, texture
+// paths and materials, bones with parents, flags, tails, inheritance, axes and IK, rigid bodies, joints). Real MMD
+// characters cannot be shipped with amt, so the tests and `amt dataset export-pmx` make their PMX files with it.
 //
 // The file is written as model.header says: its version, text encoding, additional uv count and index sizes
-// (pmx_fit_index_sizes picks the smallest sizes that hold the model). The sections a PmxModel only counts are
-// written as a minimal valid model needs them, whatever the counts say: no textures; one material drawing every
-// face (grey, double-sided, MMD's shared toon 1); no morphs; MMD's two special display frames, "Root" holding
-// bone 0 and "表情" (expressions) empty; and, in 2.1, no soft bodies. Reading the bytes back with parse_pmx gives
-// the same model field for field, so write -> read -> write gives the same bytes.
+// (pmx_fit_index_sizes picks the smallest sizes that hold the model). A model without materials gets one drawing
+// every face (grey, double-sided, MMD's shared toon 1). The sections a PmxModel only counts are written as a
+// minimal valid model needs them, whatever the counts say: no morphs; MMD's two special display frames, "Root"
+// holding bone 0 and "表情" (expressions) empty; and, in 2.1, no soft bodies. Reading the bytes back with parse_pmx
+// gives the same model field for field (plus the grey material where there was none), so write -> read -> write
+// gives the same bytes.
 //
 // The model is written in the frame its fields are in: a PMX file holds PmxFrame::kMmd values, so a model in
 // amt's frame is refused (there is no inverse of pmx_to_amt_frame here; data_tools/builder/pmx_character_export.h
@@ -92,7 +93,7 @@ void write_pmx(const PmxModel& model, const std::string& path);
 
 /// Sets the header's index sizes to the smallest that hold the model's tables: vertex indices 1 byte below 256
 /// vertices, 2 below 65536, else 4; the other indices (signed, -1 for none) 1 byte up to 128 entries, 2 up to
-/// 32768, else 4 (textures and materials: the one material the writer writes).
+/// 32768, else 4 (materials: at least the one material the writer writes).
 void pmx_fit_index_sizes(PmxModel& model);
 
 }  // namespace amt

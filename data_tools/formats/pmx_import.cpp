@@ -428,29 +428,53 @@ class PmxParser {
 
   void read_textures() {
     model_.texture_count = in_.count("textures", 4);
-    for (int32_t i = 0; i < model_.texture_count; ++i) in_.text({"textures", i});
+    model_.textures.reserve(static_cast<size_t>(model_.texture_count));
+    for (int32_t i = 0; i < model_.texture_count; ++i) model_.textures.push_back(in_.text({"textures", i}));
   }
 
   void read_materials() {
-    const size_t ti = static_cast<size_t>(h().texture_index_size);
-    model_.material_count = in_.count("materials", 84 + 2 * ti);
+    const int ti = h().texture_index_size;
+    const int64_t textures = model_.texture_count;
+    model_.material_count = in_.count("materials", 84 + 2 * static_cast<size_t>(ti));
+    model_.materials.resize(static_cast<size_t>(model_.material_count));
+    int64_t faces_left = model_.faces.rows();  // faces not yet drawn by an earlier material
     for (int32_t i = 0; i < model_.material_count; ++i) {
-      in_.text({"materials", i, "name"});
-      in_.text({"materials", i, "name_english"});
-      in_.skip(16 + 12 + 4 + 12, {"materials", i, "colours"});  // diffuse, specular, strength, ambient
-      in_.u8({"materials", i, "flags"});
-      in_.skip(16 + 4, {"materials", i, "edge"});  // edge colour, edge size
-      in_.skip(2 * ti, {"materials", i, "textures"});
-      in_.u8({"materials", i, "sphere_mode"});
-      const size_t toon_at = in_.offset();
+      PmxMaterial& m = model_.materials[static_cast<size_t>(i)];
+      m.name = in_.text({"materials", i, "name"});
+      m.name_english = in_.text({"materials", i, "name_english"});
+      m.diffuse = in_.finite_vec<4>({"materials", i, "diffuse"});
+      m.specular = in_.vec3({"materials", i, "specular"});
+      m.specular_strength = in_.finite_f32({"materials", i, "specular_strength"});
+      m.ambient = in_.vec3({"materials", i, "ambient"});
+      m.flags = in_.u8({"materials", i, "flags"});
+      m.edge_colour = in_.finite_vec<4>({"materials", i, "edge_colour"});
+      m.edge_size = in_.finite_f32({"materials", i, "edge_size"});
+      m.texture = in_.index({"materials", i, "texture"}, ti, textures, true);
+      m.sphere_texture = in_.index({"materials", i, "sphere_texture"}, ti, textures, true);
+      size_t at = in_.offset();
+      const int sphere_mode = in_.u8({"materials", i, "sphere_mode"});
+      if (sphere_mode > 3) {
+        in_.fail_at(at, {"materials", i, "sphere_mode"},
+                    "expected 0 (none), 1 (multiply), 2 (add) or 3 (sub-texture), found ", sphere_mode);
+      }
+      m.sphere_mode = static_cast<PmxSphereMode>(sphere_mode);
+      at = in_.offset();
       const int shared_toon = in_.u8({"materials", i, "toon_flag"});
       if (shared_toon > 1) {
-        in_.fail_at(toon_at, {"materials", i, "toon_flag"}, "expected 0 (texture) or 1 (shared toon), found ",
-                    shared_toon);
+        in_.fail_at(at, {"materials", i, "toon_flag"}, "expected 0 (texture) or 1 (shared toon), found ", shared_toon);
       }
-      in_.skip(shared_toon ? 1 : ti, {"materials", i, "toon"});
-      in_.text({"materials", i, "memo"});
-      in_.i32({"materials", i, "face_index_count"});
+      m.shared_toon = shared_toon == 1;
+      m.toon =
+          m.shared_toon ? in_.u8({"materials", i, "toon"}) : in_.index({"materials", i, "toon"}, ti, textures, true);
+      m.memo = in_.text({"materials", i, "memo"});
+      at = in_.offset();
+      const int32_t indices = in_.i32({"materials", i, "face_index_count"});
+      if (indices < 0 || indices % 3 != 0 || indices / 3 > faces_left) {
+        in_.fail_at(at, {"materials", i, "face_index_count"}, "expected a multiple of 3 from 0 to ", 3 * faces_left,
+                    " (the face indices no earlier material draws), found ", indices);
+      }
+      m.face_count = indices / 3;
+      faces_left -= m.face_count;
     }
   }
 

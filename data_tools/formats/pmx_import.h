@@ -217,6 +217,45 @@ struct PmxRigidBody {
   PmxPhysicsMode mode = PmxPhysicsMode::kFollowBone;
 };
 
+/// Material flag bits as stored in PmxMaterial::flags.
+enum PmxMaterialFlag : uint8_t {
+  kPmxMaterialDoubleSided = 0x01,   ///< no back-face culling
+  kPmxMaterialGroundShadow = 0x02,  ///< casts MMD's ground shadow
+  kPmxMaterialShadowMap = 0x04,     ///< draws to the self-shadow map
+  kPmxMaterialSelfShadow = 0x08,    ///< receives the self-shadow
+  kPmxMaterialEdge = 0x10,          ///< draws the outline (edge)
+  kPmxMaterialVertexColour = 0x20,  ///< PMX 2.1: the first additional uv is a vertex colour
+  kPmxMaterialPoints = 0x40,        ///< PMX 2.1: drawn as points
+  kPmxMaterialLines = 0x80,         ///< PMX 2.1: drawn as lines
+};
+
+/// How a material's sphere texture combines with its colour.
+enum class PmxSphereMode : uint8_t { kNone = 0, kMultiply = 1, kAdd = 2, kSubTexture = 3 };
+
+/// A material: how MMD draws the next face_count faces (materials cover the faces in file order).
+struct PmxMaterial {
+  std::string name;                                       ///< UTF-8
+  std::string name_english;                               ///< UTF-8
+  Eigen::Vector4f diffuse = Eigen::Vector4f::Ones();      ///< RGBA as authored (usually in [0, 1]; alpha 1 opaque)
+  Eigen::Vector3f specular = Eigen::Vector3f::Zero();     ///< RGB as authored
+  float specular_strength = 0;                            ///< specular exponent as authored
+  Eigen::Vector3f ambient = Eigen::Vector3f::Zero();      ///< RGB as authored
+  uint8_t flags = 0;                                      ///< PmxMaterialFlag bits
+  Eigen::Vector4f edge_colour = Eigen::Vector4f::Zero();  ///< outline RGBA as authored
+  float edge_size = 0;                                    ///< outline width as authored
+  int32_t texture = -1;                                   ///< index into PmxModel::textures, or -1 (none)
+  int32_t sphere_texture = -1;                            ///< index into PmxModel::textures, or -1 (none)
+  PmxSphereMode sphere_mode = PmxSphereMode::kNone;
+  bool shared_toon = false;  ///< toon is MMD's shared toon01.bmp ... toon10.bmp (toon 0 ... 9), else a texture
+  int32_t toon = -1;         ///< shared toon number, or index into PmxModel::textures, or -1 (none)
+  std::string memo;          ///< free text, UTF-8
+  /// Triangles drawn with this material (the file's face index count / 3): the faces after those of the materials
+  /// before it.
+  int32_t face_count = 0;
+
+  bool double_sided() const { return (flags & kPmxMaterialDoubleSided) != 0; }
+};
+
 /// A joint between two rigid bodies (a spring 6-DOF constraint in PMX 2.0).
 struct PmxJoint {
   std::string name;          ///< UTF-8
@@ -239,8 +278,8 @@ struct PmxJoint {
   Eigen::Vector3f spring_angular = Eigen::Vector3f::Zero();
 };
 
-/// A PMX model: what the project uses of it (mesh, skinning, bones, physics rig), plus counts of the sections
-/// that are read, checked for size and skipped (textures, materials, morphs, display frames, soft bodies).
+/// A PMX model: what the project uses of it (mesh, skinning, textures and materials, bones, physics rig), plus
+/// counts of the sections that are read, checked for size and skipped (morphs, display frames, soft bodies).
 struct PmxModel {
   std::string source;               ///< file path or display name given to the parser (for messages)
   PmxHeader header;                 ///< version, encodings, index sizes, names
@@ -252,8 +291,11 @@ struct PmxModel {
   std::vector<PmxBone> bones;              ///< in file order (not necessarily parents first)
   std::vector<PmxRigidBody> rigid_bodies;  ///< physics bodies, in file order
   std::vector<PmxJoint> joints;            ///< constraints between rigid bodies, in file order
-  int32_t texture_count = 0;               ///< texture paths in the file (skipped)
-  int32_t material_count = 0;              ///< materials in the file (skipped)
+  /// Texture paths as the file holds them (UTF-8, usually relative to the model's folder, '\\' separated).
+  std::vector<std::string> textures;
+  std::vector<PmxMaterial> materials;      ///< in file order; their face_counts add up to at most #F
+  int32_t texture_count = 0;               ///< texture paths in the file (textures.size())
+  int32_t material_count = 0;              ///< materials in the file (materials.size())
   int32_t morph_count = 0;                 ///< morphs in the file (skipped)
   int32_t display_frame_count = 0;         ///< display frames in the file (skipped)
   int32_t soft_body_count = 0;             ///< PMX 2.1 soft bodies in the file (skipped)
@@ -263,7 +305,8 @@ struct PmxModel {
 
 /// Reads a PMX 2.0 or 2.1 file. Throws amt::Error with one line "path: offset N: field: expected ..., found ..."
 /// on anything malformed: truncation, wrong magic / version / globals, counts that cannot fit in the file,
-/// indices outside their tables, non-finite numbers, bone parent cycles. The model is in PmxFrame::kMmd.
+/// indices outside their tables, non-finite numbers, bone parent cycles, material face counts that are not whole
+/// triangles or run past the faces. The model is in PmxFrame::kMmd.
 PmxModel read_pmx(const std::string& path);
 
 /// The same from `size` bytes in memory; `source` names them in messages. Never reads outside [data, data + size).

@@ -570,6 +570,82 @@ void expect_round_trip(bool v21, const WriteOptions& o) {
   EXPECT_EQ(m.soft_body_count, w.soft_body_count);
 }
 
+// The two textures and two materials the skipped sections hold (textures_and_materials), field for field.
+TEST(PmxMaterials, TexturePathsAndMaterialsAreRead) {
+  const PmxModel expected = sample_model(false);
+  for (const PmxTextEncoding encoding : {PmxTextEncoding::kUtf16Le, PmxTextEncoding::kUtf8}) {
+    WriteOptions o;
+    o.encoding = encoding;
+    const PmxModel m = parse(write_with(expected, o).bytes);
+    EXPECT_EQ(m.textures, (std::vector<std::string>{"tex/body.png", "toon/肌.bmp"}));
+    ASSERT_EQ(m.materials.size(), 2u);
+    for (int i = 0; i < 2; ++i) {
+      SCOPED_TRACE(i);
+      const PmxMaterial& mat = m.materials[size_t(i)];
+      EXPECT_EQ(mat.name, i == 0 ? "肌" : "スカート");
+      EXPECT_EQ(mat.name_english, i == 0 ? "skin" : "skirt");
+      EXPECT_EQ(mat.diffuse, Eigen::Vector4f(0, 0.25f, 0.5f, 0.75f));
+      EXPECT_EQ(mat.specular, Eigen::Vector3f(1, 1.25f, 1.5f));
+      EXPECT_EQ(mat.specular_strength, 1.75f);
+      EXPECT_EQ(mat.ambient, Eigen::Vector3f(2, 2.25f, 2.5f));
+      EXPECT_EQ(mat.flags, 0x1F);
+      EXPECT_TRUE(mat.double_sided());
+      EXPECT_EQ(mat.edge_colour, Eigen::Vector4f::Ones());
+      EXPECT_EQ(mat.edge_size, 1.0f);
+      EXPECT_EQ(mat.texture, 0);
+      EXPECT_EQ(mat.sphere_texture, -1);
+      EXPECT_EQ(mat.sphere_mode, PmxSphereMode::kMultiply);
+      EXPECT_EQ(mat.shared_toon, i == 1);
+      EXPECT_EQ(mat.toon, i == 0 ? 1 : 3);  // a texture index, then shared toon04
+      EXPECT_EQ(mat.memo, "memo");
+      EXPECT_EQ(mat.face_count, i == 0 ? 1 : expected.faces.rows() - 1);
+    }
+  }
+}
+
+// A material's face count beyond the faces left, or not whole triangles, and texture indices outside the table are
+// one-line errors naming the field.
+TEST(PmxMaterials, FaceCountsAndTextureIndicesAreChecked) {
+  PmxModel m = sample_model(false);  // 4 faces
+  m.textures = {"a.png"};
+  PmxMaterial first;
+  first.name = "first";
+  first.face_count = 3;
+  PmxMaterial second = first;
+  second.name = "second";
+  second.face_count = 2;
+  m.materials = {first, second};
+  EXPECT_NE(parse_error(pmx_to_bytes(m))
+                .find(": materials[1].face_index_count: expected a multiple of 3 from 0 to 3 "
+                      "(the face indices no earlier material draws), found 6"),
+            std::string::npos);
+  m.materials[1].face_count = 1;
+  const PmxModel back = parse(pmx_to_bytes(m));
+  ASSERT_EQ(back.materials.size(), 2u);
+  EXPECT_EQ(back.materials[0].face_count + back.materials[1].face_count, 4);
+  m.materials[0].texture = 1;
+  EXPECT_NE(parse_error(pmx_to_bytes(m)).find(": materials[0].texture: expected -1 or an index below 1, found 1"),
+            std::string::npos);
+  m.materials[0].texture = -1;
+  m.materials[1].toon = 2;
+  EXPECT_NE(parse_error(pmx_to_bytes(m)).find(": materials[1].toon: expected -1 or an index below 1, found 2"),
+            std::string::npos);
+  m.materials[1].toon = -1;
+  m.materials[1].sphere_mode = static_cast<PmxSphereMode>(4);
+  EXPECT_NE(parse_error(pmx_to_bytes(m))
+                .find(": materials[1].sphere_mode: expected 0 (none), 1 (multiply), 2 (add) or "
+                      "3 (sub-texture), found 4"),
+            std::string::npos);
+  // A face index count that is not whole triangles, written by hand over the second material's count.
+  m.materials[1].sphere_mode = PmxSphereMode::kNone;
+  PmxFieldOffsets offsets;
+  std::vector<uint8_t> bytes = pmx_to_bytes(m, &offsets);
+  patch_u32(bytes, offsets.at("bones") - 4, 2);
+  EXPECT_NE(parse_error(bytes).find(": materials[1].face_index_count: expected a multiple of 3 from 0 to 3 (the face "
+                                    "indices no earlier material draws), found 2"),
+            std::string::npos);
+}
+
 // === Round trips
 
 TEST(PmxRoundTrip, Utf16WithOneByteIndices) {

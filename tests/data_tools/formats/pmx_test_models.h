@@ -224,6 +224,33 @@ inline void expect_same_model(const PmxModel& e, const PmxModel& a) {
   EXPECT_EQ(av.edge_scale, ev.edge_scale);
   EXPECT_EQ(a.faces, e.faces);
 
+  // Textures and materials, when the expected model has its own (else the writer's one grey material comes back).
+  if (!e.materials.empty()) {
+    EXPECT_EQ(a.textures, e.textures);
+    ASSERT_EQ(a.materials.size(), e.materials.size());
+    for (size_t i = 0; i < e.materials.size(); ++i) {
+      SCOPED_TRACE("material " + std::to_string(i));
+      const PmxMaterial& em = e.materials[i];
+      const PmxMaterial& am = a.materials[i];
+      EXPECT_EQ(am.name, em.name);
+      EXPECT_EQ(am.name_english, em.name_english);
+      EXPECT_EQ(am.diffuse, em.diffuse);
+      EXPECT_EQ(am.specular, em.specular);
+      EXPECT_EQ(am.specular_strength, em.specular_strength);
+      EXPECT_EQ(am.ambient, em.ambient);
+      EXPECT_EQ(am.flags, em.flags);
+      EXPECT_EQ(am.edge_colour, em.edge_colour);
+      EXPECT_EQ(am.edge_size, em.edge_size);
+      EXPECT_EQ(am.texture, em.texture);
+      EXPECT_EQ(am.sphere_texture, em.sphere_texture);
+      EXPECT_EQ(am.sphere_mode, em.sphere_mode);
+      EXPECT_EQ(am.shared_toon, em.shared_toon);
+      EXPECT_EQ(am.toon, em.toon);
+      EXPECT_EQ(am.memo, em.memo);
+      EXPECT_EQ(am.face_count, em.face_count);
+    }
+  }
+
   ASSERT_EQ(a.bones.size(), e.bones.size());
   for (size_t i = 0; i < e.bones.size(); ++i) {
     SCOPED_TRACE("bone " + std::to_string(i));
