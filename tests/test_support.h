@@ -88,7 +88,8 @@ inline CommandResult run_command(const std::string& command) {
 /// scripts/setup.sh) on a .gltf or .glb file: zero errors expected. The test fails, not skips, when
 /// Node or the validator is not installed. The repository is found from AMT_TEST_ASSETS_DIR.
 inline void expect_valid_gltf(const std::filesystem::path& file) {
-  const std::filesystem::path repo = std::filesystem::path(AMT_TEST_ASSETS_DIR).parent_path().parent_path();
+  const std::filesystem::path repo =
+      std::filesystem::path(AMT_TEST_ASSETS_DIR).lexically_normal().parent_path().parent_path();
   const std::filesystem::path tool = repo / "tools" / "gltf-validator";
   if (std::system("node --version > /dev/null 2>&1") != 0) {
     ADD_FAILURE() << "Node.js (node) is not installed, so the glTF validator cannot run: run scripts/setup.sh";
