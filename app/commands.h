@@ -26,6 +26,8 @@ void add_view_command(CLI::App& app);
 void add_retarget_cloth_command(CLI::App& app);
 /// `amt refit-garment`: a garment moved onto an avatar of other proportions, intersection-free (refit/).
 void add_refit_garment_command(CLI::App& app);
+/// `amt convert`: a PMX model as glTF or a VRM 1.0 avatar with spring bones (data_tools/formats/pmx_gltf.h).
+void add_convert_command(CLI::App& app);
 
 /// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
 void add_threads_option(CLI::App& command);

@@ -150,6 +150,7 @@ int main(int argc, char** argv) {
   amt::app::add_view_command(app);
   amt::app::add_retarget_cloth_command(app);
   amt::app::add_refit_garment_command(app);
+  amt::app::add_convert_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -17,7 +17,8 @@ TEST(Usage, UnknownCommandsAndOptionsAndBadValuesAreOneLineErrors) {
       dir,
       {{{}, {"A subcommand is required", "(amt --help lists the options)"}},
        {{"frob"},
-        {"expected a command (dataset, train, eval, animate, bench, view, retarget-cloth, refit-garment), found "
+        {"expected a command (dataset, train, eval, animate, bench, view, retarget-cloth, refit-garment, convert), "
+         "found "
          "'frob'"}},
        {{"dataset", "frob"}, {"found 'frob'", "(amt dataset --help lists the options)"}},
        {{"animate", "--character", "x.glb", "--motion", "y.bvh", "--bogus"},
@@ -33,7 +34,7 @@ TEST(Usage, UnknownCommandsAndOptionsAndBadValuesAreOneLineErrors) {
 TEST(Usage, HelpAndVersionSucceed) {
   const auto dir = test::temp_dir("usage_help");
   const test::CommandResult help = test::expect_success(dir, {"--help"});
-  for (const char* command : {"dataset", "train", "eval", "animate", "bench", "view", "retarget-cloth"})
+  for (const char* command : {"dataset", "train", "eval", "animate", "bench", "view", "retarget-cloth", "convert"})
     EXPECT_NE(help.out.find(command), std::string::npos) << command << " not in: " << help.out;
   const test::CommandResult version = test::expect_success(dir, {"--version"});
   EXPECT_EQ(version.out.rfind("amt ", 0), 0u) << version.out;
