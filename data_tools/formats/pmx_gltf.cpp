@@ -683,6 +683,7 @@ PmxGltfSummary write_pmx_gltf(const PmxModel& input, const std::string& path, co
   if (vrm) human = pmx_vrm_humanoid(m, options.joint_map, &notes);  // before any work: its errors come first
 
   const int V = m.vertices.size(), F = int(m.faces.rows()), J = int(m.bones.size());
+  AMT_CHECK(F > 0, m.source, ": faces: expected at least 1 face to convert, found none");
   AMT_CHECK(J <= 65536, m.source,
             ": bones: expected at most 65536 bones (glTF's JOINTS_0 holds 16-bit indices), found ", J);
   summary.pmx_vertices = V;

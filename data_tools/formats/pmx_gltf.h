@@ -196,8 +196,9 @@ struct PmxGltfSummary {
 };
 
 /// Writes `model` (either frame) to `path` as the top of this file says. Throws amt::Error with one line naming the
-/// path or the model and the field: a .vrm whose humanoid bones are missing, a metres_per_unit that is not finite
-/// and positive, a file of 4 GiB or more, a failed write (nothing is left at `path` then).
+/// path or the model and the field: a model without faces, a .vrm whose humanoid bones are missing, a
+/// metres_per_unit that is not finite and positive, a file of 4 GiB or more, a failed write (nothing is left at
+/// `path` then).
 PmxGltfSummary write_pmx_gltf(const PmxModel& model, const std::string& path, const PmxGltfOptions& options = {});
 
 }  // namespace amt

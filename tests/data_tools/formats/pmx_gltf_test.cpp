@@ -490,6 +490,13 @@ TEST(PmxGltf, VrmWithoutHumanoidBonesIsAOneLineError) {
   EXPECT_EQ(human["leftLowerLeg"], "hiza");
   // A .glb needs no humanoid.
   EXPECT_EQ(write_pmx_gltf(model, (dir / "props.glb").string()).humanoid.size(), 0u);
+  // A model without faces (the fuzzer's empty sections) has nothing to convert.
+  const PmxModel empty = read_pmx(std::string(AMT_TEST_ASSETS_DIR) + "/pmx/fuzz_empty_sections.pmx");
+  EXPECT_NE(error_of([&] {
+              write_pmx_gltf(empty, (dir / "empty.glb").string());
+            }).find("fuzz_empty_sections.pmx: faces: expected at least 1 face to convert, found none"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "empty.glb"));
 }
 
 }  // namespace
