@@ -314,8 +314,7 @@ namespace {
 // A skinned character animated by node transforms, with asset.extras.amt_format `format` (the construction at the
 // top of data_tools/formats/gltf_export.h).
 void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton, const SparseWeights& weights,
-                   const NodeAnimation& animation, const GltfExportOptions& options, const char* format,
-                   bool short_rotations) {
+                   const NodeAnimation& animation, const GltfExportOptions& options, const char* format, bool compact) {
   validate_mesh(mesh, path + ": mesh");
   validate_skeleton(skeleton, path + ": skeleton");
   check_fps(animation.fps, path);
@@ -360,6 +359,22 @@ void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton&
     }
   }
 
+  // Compact weights: normalized UNSIGNED_SHORT (glTF 2.0 section 3.7.3.3), each row summing to exactly 65535 (the
+  // rounding remainder on the largest slot, off by at most 1 / 65535 of a weight); a slot that rounds to 0 points
+  // at joint 0, as zero-weight slots must.
+  std::vector<uint16_t> packed(compact ? joint_weights.size() : 0, 0);
+  for (int i = 0; compact && i < N; ++i) {
+    int sum = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      packed[size_t(i) * 4 + k] = uint16_t(std::lround(joint_weights[size_t(i) * 4 + k] * 65535.0f));
+      sum += packed[size_t(i) * 4 + k];
+    }
+    packed[size_t(i) * 4] = uint16_t(int(packed[size_t(i) * 4]) + 65535 - sum);
+    for (size_t k = 0; k < 4; ++k) {
+      if (packed[size_t(i) * 4 + k] == 0) joint_indices[size_t(i) * 4 + k] = 0;
+    }
+  }
+
   ModelBuilder builder;
   builder.set_format(format, animation.fps);
   tinygltf::Model& model = builder.model();
@@ -370,8 +385,19 @@ void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton&
   const int joint_type = J <= 256 ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE : TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
   primitive.attributes["JOINTS_0"] =
       builder.add_integers(joint_indices, joint_type, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
-  primitive.attributes["WEIGHTS_0"] =
-      builder.add_floats(joint_weights, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  if (compact) {
+    tinygltf::Accessor acc;
+    acc.bufferView = builder.add_view(packed.data(), packed.size() * sizeof(uint16_t), TINYGLTF_TARGET_ARRAY_BUFFER);
+    acc.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    acc.normalized = true;
+    acc.type = TINYGLTF_TYPE_VEC4;
+    acc.count = size_t(N);
+    model.accessors.push_back(acc);
+    primitive.attributes["WEIGHTS_0"] = int(model.accessors.size()) - 1;
+  } else {
+    primitive.attributes["WEIGHTS_0"] =
+        builder.add_floats(joint_weights, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
   primitive.indices = add_indices(builder, mesh.F, N);
   add_apparel_tint(builder, primitive, options.apparel_mask, N, path);
   tinygltf::Mesh gltf_mesh;
@@ -414,6 +440,15 @@ void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton&
   tinygltf::Animation clip;
   clip.name = options.clip;
   const int input = builder.add_floats(keyframe_times(T, animation.fps), TINYGLTF_TYPE_SCALAR, 1, 0, true);
+  // Every channel's keys, packed one after another: compact files keep all rotations in one buffer view and all
+  // translations in another (two views instead of one per channel: less JSON).
+  std::vector<unsigned char> rotation_bytes, translation_bytes;
+  struct Channel {
+    int joint;
+    bool rotation;
+    size_t offset;
+  };
+  std::vector<Channel> channels;
   for (int j = 0; j < J; ++j) {
     std::vector<float> rotations(size_t(T) * 4);
     for (int t = 0; t < T; ++t) {
@@ -425,34 +460,43 @@ void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton&
       float* r = &rotations[size_t(t) * 4];
       r[0] = u.x(), r[1] = u.y(), r[2] = u.z(), r[3] = u.w();
     }
-    int output = -1;
-    if (short_rotations) {
+    channels.push_back({j, true, rotation_bytes.size()});
+    if (compact) {
       // Normalized SHORT components (glTF 2.0 section 3.11: c = round(f 32767)), half the bytes of floats; a
       // rotation is off by at most about 3e-5 rad.
-      std::vector<int16_t> packed(rotations.size());
-      for (size_t k = 0; k < rotations.size(); ++k) packed[k] = int16_t(std::lround(rotations[k] * 32767.0f));
-      tinygltf::Accessor acc;
-      acc.bufferView = builder.add_view(packed.data(), packed.size() * sizeof(int16_t), 0);
-      acc.componentType = TINYGLTF_COMPONENT_TYPE_SHORT;
-      acc.normalized = true;
-      acc.type = TINYGLTF_TYPE_VEC4;
-      acc.count = size_t(T);
-      model.accessors.push_back(acc);
-      output = int(model.accessors.size()) - 1;
+      for (const float r : rotations) {
+        const int16_t c = int16_t(std::lround(r * 32767.0f));
+        const auto* p = reinterpret_cast<const unsigned char*>(&c);
+        rotation_bytes.insert(rotation_bytes.end(), p, p + sizeof(c));
+      }
     } else {
-      output = builder.add_floats(rotations, TINYGLTF_TYPE_VEC4, 4, 0, false);
+      const auto* p = reinterpret_cast<const unsigned char*>(rotations.data());
+      rotation_bytes.insert(rotation_bytes.end(), p, p + rotations.size() * sizeof(float));
     }
-    ModelBuilder::add_channel(clip, input, output, j + 1, "rotation");
     if (!animation.translated[size_t(j)]) continue;
-    std::vector<float> translations(size_t(T) * 3);
+    channels.push_back({j, false, translation_bytes.size()});
     for (int t = 0; t < T; ++t) {
       const Eigen::Vector3f& x = animation.translations[size_t(t) * size_t(J) + size_t(j)];
       AMT_CHECK(x.allFinite(), path, ": animation: expected a finite translation of joint ", skeleton.names[size_t(j)],
                 " at frame ", t);
-      for (int c = 0; c < 3; ++c) translations[size_t(t) * 3 + size_t(c)] = x(c);
+      const auto* p = reinterpret_cast<const unsigned char*>(x.data());
+      translation_bytes.insert(translation_bytes.end(), p, p + 3 * sizeof(float));
     }
-    ModelBuilder::add_channel(clip, input, builder.add_floats(translations, TINYGLTF_TYPE_VEC3, 3, 0, false), j + 1,
-                              "translation");
+  }
+  const int rotation_view = builder.add_view(rotation_bytes.data(), rotation_bytes.size(), 0);
+  const int translation_view =
+      translation_bytes.empty() ? -1 : builder.add_view(translation_bytes.data(), translation_bytes.size(), 0);
+  for (const Channel& c : channels) {
+    tinygltf::Accessor acc;
+    acc.bufferView = c.rotation ? rotation_view : translation_view;
+    acc.byteOffset = c.offset;
+    acc.componentType = c.rotation && compact ? TINYGLTF_COMPONENT_TYPE_SHORT : TINYGLTF_COMPONENT_TYPE_FLOAT;
+    acc.normalized = c.rotation && compact;
+    acc.type = c.rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3;
+    acc.count = size_t(T);
+    model.accessors.push_back(acc);
+    ModelBuilder::add_channel(clip, input, int(model.accessors.size()) - 1, c.joint + 1,
+                              c.rotation ? "rotation" : "translation");
   }
   model.animations.push_back(clip);
 
@@ -489,7 +533,7 @@ void append_node_frame(const Skeleton& skeleton, const Transforms& joint_transfo
 void export_gltf_skinned_animation(const std::string& path, const TriMesh& mesh, const Skeleton& skeleton,
                                    const SparseWeights& weights, const NodeAnimation& animation,
                                    const GltfExportOptions& options) {
-  write_skinned(path, mesh, skeleton, weights, animation, options, "skinned-animation", true);
+  write_skinned(path, mesh, skeleton, weights, animation, options, "skinned-animation", /*compact=*/true);
 }
 
 // === Rigged character
@@ -516,7 +560,7 @@ void export_gltf_rigged(const std::string& path, const TriMesh& mesh, const Skel
   }
   GltfExportOptions rigged = options;
   rigged.apparel_mask.clear();
-  write_skinned(path, mesh, skeleton, weights, animation, rigged, "rigged-character", false);
+  write_skinned(path, mesh, skeleton, weights, animation, rigged, "rigged-character", /*compact=*/false);
 }
 
 }  // namespace amt

@@ -36,8 +36,9 @@
 // rigged character's layout over any skeleton whose rest orientations are identity (amt's canonical joints plus
 // the apparel's handles, each a joint under the body joint it hangs from), animated by node-local rotations of
 // every joint and translations of the joints that move against their parent (the root, the handles). A joint
-// of a skin with more than 256 joints takes UNSIGNED_SHORT indices; rotations are stored as normalized SHORT
-// components (8 bytes a key instead of 16; about 3e-5 rad off). The apparel tint COLOR_0 as for a mesh
+// of a skin with more than 256 joints takes UNSIGNED_SHORT indices. Compact storage: weights as normalized
+// UNSIGNED_SHORT (each row summing to exactly 65535), rotations as normalized SHORT components (8 bytes a key
+// instead of 16; about 3e-5 rad off), and all rotation keys in one buffer view, all translation keys in another. The apparel tint COLOR_0 as for a mesh
 // sequence. asset.extras.amt_format is "skinned-animation".
 //
 // Files: GLB by default; .gltf JSON with the buffer embedded as a base64 data URI on request. Every

@@ -121,9 +121,9 @@ TEST(SkinnedOutput, TheShippedLearnedApparelAsHandlesPlaysTheComputedFrames) {
   EXPECT_LT(c.apparel_p95, 0.005) << "metres";  // ... and the skin follows it to millimetres
   // The body's 4 largest predicted weights, renormalised (glTF players read 4).
   EXPECT_LT(c.body_p95, 0.004) << "metres";
-  // An 8k-vertex character over 5 s: 9.5x (the mesh, its weights and the JSON are paid once; the ratio grows
-  // with the clip and the vertex count, 16x on Godette below).
-  EXPECT_GT(c.size_ratio, 8.0);
+  // An 8k-vertex character over 5 s: 10.0x (the mesh, its weights and the JSON are paid once; the ratio grows
+  // with the clip and the vertex count, 16x on Godette below). Sizes depend on counts alone, not on the motion.
+  EXPECT_GT(c.size_ratio, 10.0);
 }
 
 TEST(SkinnedOutput, APmxModelsOwnPhysicsAsHandlesPlaysTheComputedFrames) {
