@@ -1,4 +1,5 @@
 #include "train/trainer.h"
+#include "train/loss_guard.h"
 
 #include <ATen/ATen.h>
 #include <ATen/CPUGeneratorImpl.h>
@@ -925,6 +926,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   auto last_print = run_start;
   double step_seconds = 0.0;
   double last_validation = std::nan("");
+  LossJumpGuard loss_guard;
   for (int64_t step = first_step; step < o.steps; ++step) {
     const auto step_start = Clock::now();
     const double lr = learning_rate_at(o, step);
@@ -944,6 +946,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     if (group) group->average_gradients(parameters, values, step);
     AMT_CHECK(std::isfinite(values[0]), name, ": step ", step + 1, ": the loss is not finite (", values[0],
               "); lower --lr or check the data");
+    loss_guard.check(values[0], step + 1, name);  // before the optimizer steps on it
     for (Part& part : task.parts) part.optimizer->step();
     if (o.ema > 0) {
       const double decay = std::min(o.ema, (1.0 + double(step)) / (10.0 + double(step)));
