@@ -101,6 +101,19 @@ class ModelBuilder {
     return int(model_.accessors.size()) - 1;
   }
 
+  /// Adds a normalized integer VEC4 accessor over `bytes` (count elements of component type `component_type`:
+  /// UNSIGNED_BYTE or UNSIGNED_SHORT) in a view of its own; returns its index.
+  int add_normalized_vec4(const void* bytes, size_t size, size_t count, int component_type, int target) {
+    tinygltf::Accessor acc;
+    acc.bufferView = add_view(bytes, size, target);
+    acc.componentType = component_type;
+    acc.normalized = true;
+    acc.type = TINYGLTF_TYPE_VEC4;
+    acc.count = count;
+    model_.accessors.push_back(acc);
+    return int(model_.accessors.size()) - 1;
+  }
+
   /// Adds an animation sampler (LINEAR) and its channel to `animation`.
   static void add_channel(tinygltf::Animation& animation, int input, int output, int node, const char* path) {
     tinygltf::AnimationSampler sampler;
@@ -193,16 +206,10 @@ void add_apparel_tint(ModelBuilder& builder, tinygltf::Primitive& primitive, con
   if (mask.empty()) return;
   AMT_CHECK(mask.size() == size_t(num_vertices), path, ": apparel mask: expected ", num_vertices, " entries, found ",
             mask.size());
-  tinygltf::Model& model = builder.model();
   const std::vector<uint8_t> colors = apparel_vertex_colors(mask, path);
-  tinygltf::Accessor color;
-  color.bufferView = builder.add_view(colors.data(), colors.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
-  color.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-  color.normalized = true;
-  color.type = TINYGLTF_TYPE_VEC4;
-  color.count = size_t(num_vertices);
-  model.accessors.push_back(color);
-  primitive.attributes["COLOR_0"] = int(model.accessors.size()) - 1;
+  primitive.attributes["COLOR_0"] =
+      builder.add_normalized_vec4(colors.data(), colors.size(), size_t(num_vertices),
+                                  TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TARGET_ARRAY_BUFFER);
   builder.set_apparel_record(int(std::count(mask.begin(), mask.end(), 1)));
 }
 
@@ -386,14 +393,9 @@ void write_skinned(const std::string& path, const TriMesh& mesh, const Skeleton&
   primitive.attributes["JOINTS_0"] =
       builder.add_integers(joint_indices, joint_type, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER);
   if (compact) {
-    tinygltf::Accessor acc;
-    acc.bufferView = builder.add_view(packed.data(), packed.size() * sizeof(uint16_t), TINYGLTF_TARGET_ARRAY_BUFFER);
-    acc.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
-    acc.normalized = true;
-    acc.type = TINYGLTF_TYPE_VEC4;
-    acc.count = size_t(N);
-    model.accessors.push_back(acc);
-    primitive.attributes["WEIGHTS_0"] = int(model.accessors.size()) - 1;
+    primitive.attributes["WEIGHTS_0"] =
+        builder.add_normalized_vec4(packed.data(), packed.size() * sizeof(uint16_t), size_t(N),
+                                    TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TARGET_ARRAY_BUFFER);
   } else {
     primitive.attributes["WEIGHTS_0"] =
         builder.add_floats(joint_weights, TINYGLTF_TYPE_VEC4, 4, TINYGLTF_TARGET_ARRAY_BUFFER, false);

@@ -89,9 +89,11 @@ TEST(HandleFit, AHandleWhoseVerticesLieOnALineTakesTheFallbackRotation) {
   skin.rest = V.topRows(1);
   const HandleFit fit(V, skin);
   const Eigen::Quaternionf fallback(Eigen::AngleAxisf(0.5f, Eigen::Vector3f::UnitY()));
+  // Step 1 alone: points on a line leave the rotation about it free, so Kabsch must not pick one.
   Quaternions rotations;
-  MatrixX3f positions;
-  fit.fit(V, Quaternions{fallback}, rotations, positions);
+  MatrixX3f Y = V;
+  Y.col(1).array() += 0.1f;
+  fit.kabsch(Y, Quaternions{fallback}, rotations);
   EXPECT_LT(rotations[0].angularDistance(fallback), 1e-6f);
 }
 
