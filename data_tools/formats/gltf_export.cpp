@@ -17,6 +17,7 @@
 
 #include "amt/version.h"
 #include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/gltf_buffer.h"
 #include "data_tools/geometry/error.h"
 
 namespace amt {
@@ -30,8 +31,7 @@ constexpr size_t kMaxSequenceFrames = 65536;
 // Builds a tinygltf model with one buffer; every buffer view starts on a 4-byte boundary.
 class ModelBuilder {
  public:
-  ModelBuilder() {
-    model_.buffers.resize(1);
+  ModelBuilder() : buffer_(model_) {
     model_.asset.version = "2.0";
     model_.asset.generator = std::string("amt ") + AMT_VERSION;
   }
@@ -39,39 +39,12 @@ class ModelBuilder {
   tinygltf::Model& model() { return model_; }
 
   /// Appends bytes as a new buffer view (target 0 for none); returns its index.
-  int add_view(const void* bytes, size_t size, int target) {
-    std::vector<unsigned char>& data = model_.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = size;
-    view.target = target;
-    const auto* p = static_cast<const unsigned char*>(bytes);
-    data.insert(data.end(), p, p + size);
-    model_.bufferViews.push_back(view);
-    return int(model_.bufferViews.size()) - 1;
-  }
+  int add_view(const void* bytes, size_t size, int target) { return buffer_.view(bytes, size, target); }
 
   /// Adds a FLOAT accessor over `values` (count x components, row-major) in a view of its own; with
   /// `bounds`, min and max per component (required for POSITION and animation inputs).
   int add_floats(const std::vector<float>& values, int type, int components, int target, bool bounds) {
-    tinygltf::Accessor acc;
-    acc.bufferView = add_view(values.data(), values.size() * sizeof(float), target);
-    acc.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    acc.type = type;
-    acc.count = values.size() / size_t(components);
-    if (bounds) {
-      acc.minValues.assign(size_t(components), std::numeric_limits<double>::infinity());
-      acc.maxValues.assign(size_t(components), -std::numeric_limits<double>::infinity());
-      for (size_t i = 0; i < values.size(); ++i) {
-        const size_t c = i % size_t(components);
-        acc.minValues[c] = std::min(acc.minValues[c], double(values[i]));
-        acc.maxValues[c] = std::max(acc.maxValues[c], double(values[i]));
-      }
-    }
-    model_.accessors.push_back(acc);
-    return int(model_.accessors.size()) - 1;
+    return buffer_.accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, components, target, bounds);
   }
 
   /// Adds an integer accessor (UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT components) over
@@ -149,6 +122,7 @@ class ModelBuilder {
 
  private:
   tinygltf::Model model_;
+  GltfBuffer buffer_;
 };
 
 // Keyframe times k / fps for k = 0 .. T - 1.

@@ -25,6 +25,7 @@
 #include <unordered_set>
 
 #include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/gltf_buffer.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/geometry/error.h"
 
@@ -2100,27 +2101,9 @@ void export_gltf_animated_copy(const GltfAsset& source, const GltfCharacter& cha
             a.model.buffers.size(), " buffers");
   tinygltf::Model model = a.model;
   model.animations.clear();
-  tinygltf::Buffer& buffer = model.buffers.empty() ? model.buffers.emplace_back() : model.buffers[0];
+  GltfBuffer buffer(model);
   auto add_accessor = [&](const std::vector<float>& values, int type, int components, bool bounds) {
-    buffer.data.resize((buffer.data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = buffer.data.size();
-    view.byteLength = values.size() * sizeof(float);
-    const auto* p = reinterpret_cast<const unsigned char*>(values.data());
-    buffer.data.insert(buffer.data.end(), p, p + view.byteLength);
-    model.bufferViews.push_back(view);
-    tinygltf::Accessor acc;
-    acc.bufferView = int(model.bufferViews.size()) - 1;
-    acc.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    acc.type = type;
-    acc.count = values.size() / size_t(components);
-    if (bounds) {
-      acc.minValues = {double(*std::min_element(values.begin(), values.end()))};
-      acc.maxValues = {double(*std::max_element(values.begin(), values.end()))};
-    }
-    model.accessors.push_back(acc);
-    return int(model.accessors.size()) - 1;
+    return buffer.accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, components, 0, bounds);
   };
   // Per frame, every node's global transform: a joint's is its skinning transform times its rest global transform,
   // any other node keeps its rest place under its parent; each animated node's local transform follows.
@@ -2181,7 +2164,7 @@ void export_gltf_animated_copy(const GltfAsset& source, const GltfCharacter& cha
     }
   }
   model.animations.push_back(animation);
-  buffer.uri.clear();
+  model.buffers[0].uri.clear();
   std::ostringstream stream;
   tinygltf::TinyGLTF writer;
   AMT_CHECK(writer.WriteGltfSceneToStream(&model, stream, false, true), path,

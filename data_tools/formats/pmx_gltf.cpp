@@ -20,6 +20,7 @@
 
 #include "amt/version.h"
 #include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/gltf_buffer.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/mesh.h"
 
@@ -527,51 +528,6 @@ TextureFile read_texture(const fs::path& folder, const std::string& raw) {
 
 // --- The glTF model
 
-// Appends typed arrays to the model's one buffer, each in a view of its own on a 4-byte boundary.
-class Buffer {
- public:
-  explicit Buffer(tinygltf::Model& model) : model_(model) { model_.buffers.resize(1); }
-
-  int view(const void* bytes, size_t size, int target) {
-    std::vector<unsigned char>& data = model_.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView v;
-    v.buffer = 0;
-    v.byteOffset = data.size();
-    v.byteLength = size;
-    v.target = target;
-    data.insert(data.end(), static_cast<const unsigned char*>(bytes), static_cast<const unsigned char*>(bytes) + size);
-    model_.bufferViews.push_back(v);
-    return int(model_.bufferViews.size()) - 1;
-  }
-
-  // An accessor over `values` (count x components of C++ type T, glTF component type `component`); `bounds`
-  // writes min and max.
-  template <typename T>
-  int accessor(const std::vector<T>& values, int component, int type, int components, int target, bool bounds) {
-    tinygltf::Accessor a;
-    a.bufferView = view(values.data(), values.size() * sizeof(T), target);
-    a.componentType = component;
-    a.type = type;
-    a.count = values.size() / size_t(components);
-    if (bounds) {
-      a.minValues.assign(size_t(components), std::numeric_limits<double>::infinity());
-      a.maxValues.assign(size_t(components), -std::numeric_limits<double>::infinity());
-      for (size_t i = 0; i < values.size(); ++i) {
-        double& lo = a.minValues[i % size_t(components)];
-        double& hi = a.maxValues[i % size_t(components)];
-        lo = std::min(lo, double(values[i]));
-        hi = std::max(hi, double(values[i]));
-      }
-    }
-    model_.accessors.push_back(a);
-    return int(model_.accessors.size()) - 1;
-  }
-
- private:
-  tinygltf::Model& model_;
-};
-
 tinygltf::Value to_value(const json& j) {
   switch (j.type()) {
     case json::value_t::boolean:
@@ -694,7 +650,7 @@ PmxGltfSummary write_pmx_gltf(const PmxModel& input, const std::string& path, co
   model.asset.generator = std::string("amt ") + AMT_VERSION;
   model.asset.extras =
       to_value(json{{"amt_format", "converted-pmx"}, {"amt_format_version", 1}, {"metres_per_unit", double(m.scale)}});
-  Buffer buffer(model);
+  GltfBuffer buffer(model);
 
   // --- Materials and their textures
   const fs::path folder =
