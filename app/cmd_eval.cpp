@@ -171,6 +171,9 @@ void add_eval_command(CLI::App& app) {
                    "cloth_retarget_unresolved on the clips of garment pairs (amt dataset pairs)");
   eval->add_option("--predictions", command->predictions,
                    "Score a dataset file of predicted vertices (amt animate --out x.h5) instead of running a model");
+  eval->add_flag("--ground-truth-as-predictions", o.ground_truth_as_predictions,
+                 "With --predictions: also score a ground-truth dataset file (e.g. one rebuilt with other physics, "
+                 "against the original); without it such a file is refused, as it would score perfect");
   eval->add_option("--viewer", command->viewer,
                    "Also write a viewer folder: the worst, median and best clip of each subset by the full model's "
                    "PMD_a, prediction beside ground truth and skinning (open it with amt view DIR)");

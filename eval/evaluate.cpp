@@ -254,8 +254,7 @@ void score_open_parts(const ModelBundle& bundle, CharacterCache& c) {
 // kHeldOutArtistStyle.
 std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, const std::string& name,
                                                const std::string& subset, bool penetration,
-                                               const ArtistStyleOptions& artist_style = {},
-                                               bool rig_handles = false) {
+                                               const ArtistStyleOptions& artist_style = {}, bool rig_handles = false) {
   auto c = std::make_unique<CharacterCache>();
   if (subset == kHeldOutArtistStyle) c->remake = artist_style_character(reader.read_character(name), artist_style);
   const CharacterData data = c->remake ? c->remake->character : reader.read_character(name);
@@ -298,7 +297,8 @@ struct CharacterCaches {
   CharacterCache& of(const DatasetReader& reader, const EvalClip& clip, bool penetration) {
     CharacterCache*& c = index[{clip.shard, clip.info.character}];
     if (!c) {
-      loaded.push_back(load_character(reader, clip.info.character, clip.subset, penetration, artist_style, rig_handles));
+      loaded.push_back(
+          load_character(reader, clip.info.character, clip.subset, penetration, artist_style, rig_handles));
       c = loaded.back().get();
     }
     return *c;
@@ -969,6 +969,10 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
   result.options = options;
   auto readers = open_shards(shards);
   const DatasetReader predicted(predictions);
+  AMT_CHECK(options.ground_truth_as_predictions || !predicted.predictions().empty(), predictions, ": attribute '",
+            kPredictionsAttribute,
+            "': missing: the file holds ground truth, which would score as perfect (expected predictions, e.g. "
+            "from amt animate --out x.h5; --ground-truth-as-predictions scores it anyway)");
   AMT_CHECK(predicted.joint_names() == readers.front()->joint_names(), predictions, ": skeleton: expected the ",
             readers.front()->joint_names().size(), " joints of ", shards.front(), ", found ",
             predicted.joint_names().size(), " different ones");

@@ -167,6 +167,7 @@ class DatasetFrameWriter : public FrameWriter {
  public:
   DatasetFrameWriter(const std::string& path, const OutputInfo& info)
       : path_(path), writer_(path, info.fps, info.skeleton.names) {
+    writer_.mark_predictions(info.made_by);
     CharacterData c;
     c.name = info.character;
     c.mesh = info.mesh;

@@ -54,6 +54,8 @@ struct OutputInfo {
   std::string clip = "clip", motion = "motion";
   int frames = 0;
   float fps = 30.0f;
+  /// What made the frames: the mark of predictions in a .h5 output (`amt eval --predictions` takes only marked files).
+  std::string made_by = "amt animate";
   /// A .glb is a skinned animation with this rig, a vertex cache without one.
   std::shared_ptr<const OutputSkin> skin;
 };

@@ -15,10 +15,10 @@
 #include <vector>
 
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/formats/obj_io.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
 #include "data_tools/geometry/motion.h"
-#include "data_tools/formats/obj_io.h"
 #include "infer/character_input.h"
 #include "infer/frame_writer.h"
 
@@ -62,9 +62,9 @@ class SourceFrames {
       const ClipInfo info = reader_->clip_info(clip_);
       frames_ = info.num_frames;
       fps_ = info.fps;
-      AMT_CHECK(o.source_character.empty() || o.source_character == split->first + ":" + info.character,
-                o.source, ": --source-character: a dataset clip brings its own character (", info.character,
-                "), found '", o.source_character, "'");
+      AMT_CHECK(o.source_character.empty() || o.source_character == split->first + ":" + info.character, o.source,
+                ": --source-character: a dataset clip brings its own character (", info.character, "), found '",
+                o.source_character, "'");
       character = {split->first + ":" + info.character, reader_->read_character(info.character)};
       return;
     }
@@ -85,7 +85,8 @@ class SourceFrames {
           name == std::filesystem::path(obj_path(t)).filename().string())
         found.insert(t);
     }
-    AMT_CHECK(!found.empty(), folder_, ": --source: expected the OBJ frames frame_0000.obj, frame_0001.obj, ..., found none");
+    AMT_CHECK(!found.empty(), folder_,
+              ": --source: expected the OBJ frames frame_0000.obj, frame_0001.obj, ..., found none");
     frames_ = *found.rbegin() + 1;
     for (int t = 0; t < frames_; ++t)
       AMT_CHECK(found.count(t), obj_path(t), ": --source: missing OBJ frame ", t, " (found ", found.size(),
@@ -180,6 +181,7 @@ RetargetClothSummary retarget_cloth(const RetargetClothOptions& o) {
   info.motion = motion.name;
   info.frames = s.frames;
   info.fps = s.fps;
+  info.made_by = "amt retarget-cloth";
   std::unique_ptr<FrameWriter> writer = open_frame_writer(o.out, info);
 
   std::vector<float> frame_seconds;

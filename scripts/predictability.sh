@@ -50,7 +50,7 @@ for variant in substep_half damping_1.2 stiffness_1.2; do
   shards=("$out/$variant"/character-*.h5)
   for shard in "${shards[@]}"; do
     name=$(basename "$shard" .h5)
-    "$amt" eval --data "$data" --predictions "$shard" --out "$out/$variant.eval/$name" --no-penetration \
+    "$amt" eval --data "$data" --predictions "$shard" --ground-truth-as-predictions --out "$out/$variant.eval/$name" --no-penetration \
       --no-plots --quiet --threads 1 > /dev/null
   done
   python3 - "$variant" "$out/$variant.eval" <<'EOF'

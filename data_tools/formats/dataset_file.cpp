@@ -9,10 +9,10 @@
 #include <utility>
 
 #include "data_tools/formats/atomic_file.h"
-#include "data_tools/geometry/error.h"
+#include "data_tools/formats/hdf5_handle.h"
 #include "data_tools/formats/input_file.h"
 #include "data_tools/formats/temporary_registry.h"
-#include "data_tools/formats/hdf5_handle.h"
+#include "data_tools/geometry/error.h"
 
 namespace amt {
 
@@ -154,6 +154,8 @@ struct RootInfo {
   int64_t version = 0;
   float fps = 0;
   std::vector<std::string> joint_names;
+  /// The optional attribute `predictions` (what made them); empty in a ground-truth file.
+  std::string predictions;
 };
 
 void write_root(hid_t file, float fps, const std::vector<std::string>& joint_names, const std::string& where) {
@@ -196,6 +198,11 @@ RootInfo read_root(hid_t file, const std::string& path) {
   check_fps(root.fps, path);
   root.joint_names = h5::read_string_list_attribute(file, "skeleton", path);
   check_joint_names(root.joint_names, path);
+  if (h5::has_attribute(file, kPredictionsAttribute)) {
+    root.predictions = h5::read_string_attribute(file, kPredictionsAttribute, path);
+    AMT_CHECK(!root.predictions.empty(), path, ": attribute '", kPredictionsAttribute,
+              "': expected what made the predictions, found an empty string");
+  }
   return root;
 }
 
@@ -438,6 +445,16 @@ DatasetWriter& DatasetWriter::operator=(DatasetWriter&& other) noexcept = defaul
 
 const std::string& DatasetWriter::path() const {
   return impl_->path;
+}
+
+void DatasetWriter::mark_predictions(const std::string& made_by) {
+  AMT_CHECK(!made_by.empty(), impl_->path, ": attribute '", kPredictionsAttribute,
+            "': expected what made the predictions, found an empty string");
+  const h5::QuietErrors quiet;
+  if (h5::has_attribute(impl_->file.get(), kPredictionsAttribute))
+    AMT_CHECK(H5Adelete(impl_->file.get(), kPredictionsAttribute) >= 0, impl_->path, ": attribute '",
+              kPredictionsAttribute, "': cannot replace it");
+  h5::write_string_attribute(impl_->file.get(), kPredictionsAttribute, made_by, impl_->path);
 }
 const std::string& DatasetWriter::temporary_path() const {
   return impl_->temporary;
@@ -757,6 +774,9 @@ float DatasetReader::fps() const {
 }
 int DatasetReader::version() const {
   return int(impl_->root.version);
+}
+const std::string& DatasetReader::predictions() const {
+  return impl_->root.predictions;
 }
 int64_t DatasetReader::verify() const {
   return h5::verify_datasets(impl_->file.get(), impl_->path);

@@ -5,7 +5,8 @@
 //
 // Layout:
 //   /                      attributes format = "amt-dataset", version = 1, units = "metres",
-//                          up_axis = "y", fps (float), skeleton (joint names)
+//                          up_axis = "y", fps (float), skeleton (joint names); in a file of
+//                          predictions (amt animate --out x.h5) also predictions = what made them
 //   /characters/<name>/    rest_vertices (N,3) f32, faces (F,3) i32, rest_joints (J,3) f32,
 //                          joint_parents (J) i32, apparel_mask (N) u8, body_weights (N,J) f32;
 //                          attribute split ("train" | "test")
@@ -39,6 +40,9 @@ inline constexpr const char* kDatasetFormat = "amt-dataset";
 /// kDatasetVersion (a version 1 file is only verified as far as its compressed streams go).
 inline constexpr int kDatasetVersion = 2;
 inline constexpr int kDatasetOldestVersion = 1;
+/// Root attribute present only in files of predictions (what made them, e.g. "amt animate: ..."):
+/// `amt eval --predictions` refuses a file without it, so ground truth never scores as a prediction.
+inline constexpr const char* kPredictionsAttribute = "predictions";
 
 /// Dense row-major int32 matrix, e.g. rig skin indices (N, K).
 using MatrixXiR = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
@@ -153,6 +157,9 @@ class DatasetWriter {
 
   /// The target path.
   const std::string& path() const;
+  /// Marks the file as predictions, not ground truth: root attribute `predictions` = `made_by`
+  /// (replacing an earlier mark).
+  void mark_predictions(const std::string& made_by);
   /// The temporary file written until commit().
   const std::string& temporary_path() const;
   /// The file's frame rate.
@@ -223,6 +230,9 @@ class DatasetReader {
   float fps() const;
   /// Root attribute `version` (kDatasetOldestVersion to kDatasetVersion).
   int version() const;
+  /// Root attribute `predictions`: what made the file's frames when it holds predictions, empty when
+  /// it holds ground truth.
+  const std::string& predictions() const;
   /// Reads every dataset in full so that HDF5 checks its checksums (h5::verify_datasets): throws
   /// amt::Error naming the file and the first damaged dataset. Returns the number of datasets.
   int64_t verify() const;

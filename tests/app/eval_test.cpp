@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "tests/app/amt_cli.h"
+#include "tests/predictions_file.h"
 
 namespace amt {
 namespace {
@@ -34,10 +35,11 @@ TEST(EvalCommand, ScoresAPredictionsFileAndTheShippedModelIntoAReportFolder) {
   const fs::path dir = test::temp_dir("eval_scores");
   const std::string data = test::build_tiny_dataset(dir);
   fs::create_directories(dir / "report");  // an empty folder is taken
-  // The ground truth as the predictions: zero on the held-out clip.
+  // A copy of the ground truth marked as predictions: zero on the held-out clip.
+  test::copy_as_predictions((dir / data / "character-0000.h5").string(), (dir / "predicted.h5").string());
   const test::CommandResult truth =
-      test::expect_success(dir, {"eval", "--data", data, "--predictions", data + "/character-0000.h5", "--out",
-                                 "report", "--no-plots", "--no-penetration", "--quiet", "--threads", "1"});
+      test::expect_success(dir, {"eval", "--data", data, "--predictions", "predicted.h5", "--out", "report",
+                                 "--no-plots", "--no-penetration", "--quiet", "--threads", "1"});
   EXPECT_NE(truth.out.find("held-out clips, file, Predictions file: PMD 0 cm, PMD_a 0 cm, PMD_b 0 cm, ELS 1,"),
             std::string::npos)
       << truth.out;
@@ -47,6 +49,11 @@ TEST(EvalCommand, ScoresAPredictionsFileAndTheShippedModelIntoAReportFolder) {
   const Json scored = read_json(dir / "report" / "metrics.json");
   EXPECT_EQ(scored.at("format"), "amt-eval");
   EXPECT_EQ(row_of(scored, "predictions").at("pmd_cm"), 0.0);
+  // The unmarked shard itself only when the user says a ground-truth file is meant.
+  const test::CommandResult meant = test::expect_success(
+      dir, {"eval", "--data", data, "--predictions", data + "/character-0000.h5", "--ground-truth-as-predictions",
+            "--out", "report", "--no-plots", "--no-penetration", "--quiet", "--threads", "1"});
+  EXPECT_NE(meant.out.find("held-out clips, file, Predictions file: PMD 0 cm,"), std::string::npos) << meant.out;
 
   // The shipped model into the same folder (amt's report, replaced): the skinning baseline is exact on the
   // body (the ground truth skins it with the same weights), the full model finite.
@@ -86,6 +93,8 @@ TEST(EvalCommand, BadInputsAreOneLineErrorsAndWriteNoReport) {
        {"text.h5: expected an HDF5 file", "found a file that is not HDF5"}},
       {eval({"--data", "ex.h5", "--model", model}), {"ex.h5: no held-out clips"}},
       {eval({"--data", "ex.h5", "--predictions", "missing.h5"}), {"missing.h5: no such predictions file"}},
+      {eval({"--data", "ex.h5", "--predictions", "ex.h5"}),
+       {"ex.h5: attribute 'predictions': missing: the file holds ground truth, which would score as perfect"}},
       {eval({"--data", "ex.h5", "--predictions", "ex.h5", "--runtime"}),
        {"--runtime: expected a model to time, found --predictions"}},
       {eval({"--data", "ex.h5", "--model", model, "--methods", "magic"}),
@@ -99,8 +108,9 @@ TEST(EvalCommand, RefusesAnOutputItDidNotWriteAndLeavesItUntouched) {
   test::users_folder(dir, "mine");
   std::ofstream(dir / "mine" / "report.md") << "# the user's report\n";
   std::ofstream(dir / "notes.txt") << "the user's notes\n";
+  test::copy_as_predictions((dir / data / "character-0000.h5").string(), (dir / "predicted.h5").string());
   const auto eval = [&](const std::string& out) {
-    return std::vector<std::string>{"eval",  "--data", data,      "--predictions", data + "/character-0000.h5",
+    return std::vector<std::string>{"eval",  "--data", data,      "--predictions", "predicted.h5",
                                     "--out", out,      "--quiet", "--no-plots",    "--no-penetration"};
   };
   test::expect_errors_writing_nothing(

@@ -27,6 +27,7 @@
 #include "models/module_options.h"
 #include "models/pipeline.h"
 #include "tests/data_tools/builder/tiny_build.h"
+#include "tests/predictions_file.h"
 #include "tests/train/fresh_model.h"
 #include "tests/train/micro_dataset.h"
 
@@ -248,7 +249,8 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
   EvaluateOptions options;
   options.progress = false;
   options.penetration = false;
-  const EvaluationResult result = evaluate_predictions({dir + "/lbs.h5"}, dir + "/lbs.h5", options);
+  const std::string truth_as_predictions = test::copy_as_predictions(dir + "/lbs.h5", dir + "/lbs_predicted.h5");
+  const EvaluationResult result = evaluate_predictions({dir + "/lbs.h5"}, truth_as_predictions, options);
   const MethodScores* row = result.find("predictions", "file", kHeldOutClips);
   ASSERT_NE(row, nullptr);
   EXPECT_EQ(row->scores.frames, 12);
@@ -262,6 +264,7 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
       double(std::count(c.apparel_mask.begin(), c.apparel_mask.end(), uint8_t(1))) / double(c.apparel_mask.size());
   ASSERT_GT(apparel_share, 0.05);
   ASSERT_LT(apparel_share, 0.95);
+  test::copy_as_predictions(dir + "/apparel_shifted.h5", dir + "/apparel_shifted.h5");
   const EvaluationResult shifted = evaluate_predictions({dir + "/lbs.h5"}, dir + "/apparel_shifted.h5", options);
   for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
     const MethodScores* r = shifted.find("predictions", "file", subset);
@@ -275,6 +278,11 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
               evaluate_predictions({dir + "/lbs.h5"}, dir + "/none.h5", options);
             }).find("none.h5: no such predictions file"),
             std::string::npos);
+  // The ground truth itself (no mark of predictions) is refused: it would score as perfect.
+  EXPECT_NE(test::error_of([&] {
+              evaluate_predictions({dir + "/lbs.h5"}, dir + "/lbs.h5", options);
+            }).find("lbs.h5: attribute 'predictions': missing: the file holds ground truth"),
+            std::string::npos);
 }
 
 TEST(Evaluate, PredictionShiftedByOneCentimetreScoresOneCentimetre) {
@@ -282,6 +290,7 @@ TEST(Evaluate, PredictionShiftedByOneCentimetreScoresOneCentimetre) {
   const std::string dir = test::test_directory("eval_shifted");
   write_lbs_dataset(dir + "/lbs.h5", 12);
   write_lbs_dataset(dir + "/shifted.h5", 12, 1, 1, 0.01f);
+  test::copy_as_predictions(dir + "/shifted.h5", dir + "/shifted.h5");
   EvaluateOptions options;
   options.progress = false;
   options.penetration = false;
@@ -295,7 +304,8 @@ TEST(Evaluate, PredictionShiftedByOneCentimetreScoresOneCentimetre) {
   }
   // Dynamics amplitude against a ground truth that lags 1 cm behind skinning: the skinned frames
   // have none of it (0), the ground truth itself all of it (1).
-  const EvaluationResult glued = evaluate_predictions({dir + "/shifted.h5"}, dir + "/lbs.h5", options);
+  const EvaluationResult glued = evaluate_predictions(
+      {dir + "/shifted.h5"}, test::copy_as_predictions(dir + "/lbs.h5", dir + "/lbs_predicted.h5"), options);
   const EvaluationResult lively = evaluate_predictions({dir + "/shifted.h5"}, dir + "/shifted.h5", options);
   EXPECT_NEAR(glued.find("predictions", "file", kHeldOutClips)->amplitude, 0.0, 1e-4);
   EXPECT_NEAR(lively.find("predictions", "file", kHeldOutClips)->amplitude, 1.0, 1e-4);
@@ -395,6 +405,7 @@ TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
   const std::string dir = test::test_directory("eval_seams");
   write_seam_dataset(dir + "/truth.h5", false);
   write_seam_dataset(dir + "/predicted.h5", true);
+  test::copy_as_predictions(dir + "/predicted.h5", dir + "/predicted.h5");
   const CharacterData c = DatasetReader(dir + "/truth.h5").read_character("seams");
   const int64_t apparel_edges_count = apparel_edges(unique_edges(c.mesh.F), c.apparel_mask).rows();
   const int64_t pairs = coincident_pairs(c.mesh.V, c.mesh.F).rows();
@@ -402,7 +413,8 @@ TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
   EvaluateOptions options;
   options.progress = false;
   options.penetration = false;
-  const EvaluationResult same = evaluate_predictions({dir + "/truth.h5"}, dir + "/truth.h5", options);
+  const EvaluationResult same = evaluate_predictions(
+      {dir + "/truth.h5"}, test::copy_as_predictions(dir + "/truth.h5", dir + "/truth_predicted.h5"), options);
   const MethodScores* exact = same.find("predictions", "file", kHeldOutCharacters);
   ASSERT_NE(exact, nullptr);
   EXPECT_EQ(exact->separation.tearing, 0.0);

@@ -383,6 +383,24 @@ TEST(DatasetFile, AppendResumesAnExistingFile) {
   EXPECT_EQ(reader.read_vertices("c1", 2, 1), vertex_frame(bob, 2));
 }
 
+// Files of predictions carry the root attribute `predictions` (what made them); ground truth does not.
+TEST(DatasetFile, PredictionsAreMarkedAndGroundTruthIsNot) {
+  TempPath path;
+  write_vertex_dataset(path.str(), 2);
+  EXPECT_EQ(DatasetReader(path.str()).predictions(), "");
+  {
+    DatasetWriter writer = DatasetWriter::append(path.str());
+    writer.mark_predictions("amt animate");
+    writer.mark_predictions("amt retarget-cloth");  // a second mark replaces the first
+    expect_error([&] { writer.mark_predictions(""); },
+                 {path.str(), "attribute 'predictions'", "expected what made the predictions"});
+    writer.commit();
+  }
+  const DatasetReader reader(path.str());
+  EXPECT_EQ(reader.predictions(), "amt retarget-cloth");
+  EXPECT_EQ(reader.read_vertices("c1", 1, 1), vertex_frame(tetrahedron("bob", chain()), 1));  // the frames kept
+}
+
 TEST(DatasetFile, WriterAndReaderMove) {
   TempPath path;
   const Skeleton s = chain();
