@@ -229,6 +229,12 @@ void add_train_command(CLI::App& app) {
                     "refiner, apparel_refiner: the trained skinning predictor for the body; apparel (local form): the "
                     "one whose body weights skin the anchors, as at run time (default: ground-truth body weights; "
                     "all: <out>/skinning.ckpt for the refiner)");
+  train
+      ->add_option("--anchor-truth-share", o.anchor_truth_share,
+                   "apparel (local form) with --skinning: the share of characters whose anchors keep the "
+                   "ground-truth body weights (the weights of a file's own skin), the others the predictor's")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   train->add_option("--loader-threads", o.loader_threads, "Threads reading samples ahead of training")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();

@@ -292,9 +292,10 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
       t->G_body = float_tensor(G.data(), {N_b, J});
     }
     // The anchors' weights: ground truth, or what options_.anchor_body_weights gives (a trained predictor's).
-    const at::Tensor anchor_body_weights = options_.anchor_body_weights && t->body_ids.size(0) > 0
-                                               ? options_.anchor_body_weights(*t)
-                                               : t->body_weights.index_select(0, t->body_ids);
+    const bool predicted_anchors = options_.anchor_body_weights && t->body_ids.size(0) > 0 &&
+                                   !anchor_truth_character(c.name, options_.anchor_truth_share, options_.seed);
+    const at::Tensor anchor_body_weights =
+        predicted_anchors ? options_.anchor_body_weights(*t) : t->body_weights.index_select(0, t->body_ids);
     t->apparel_anchor = options_.apparel_anchor;
     t->apparel_anchor_weights = apparel_anchor_weights_for(options_.apparel_anchor, t->V, t->graph_edges,
                                                            t->apparel_ids, t->body_ids, anchor_body_weights);
@@ -312,6 +313,19 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
     c.tensors = std::move(t);
   });
   return c.tensors;
+}
+
+bool anchor_truth_character(const std::string& name, double share, uint64_t seed) {
+  if (!(share > 0.0)) return false;
+  uint64_t hash = 0xCBF29CE484222325ull;
+  fnv1a(hash, &seed, sizeof(seed));
+  fnv1a(hash, name.data(), name.size());
+  // FNV-1a leaves its high bits nearly alike for names that differ in the last characters: mix them (the
+  // finaliser of MurmurHash3's 64-bit hash) before the top 53 bits become a uniform number in [0, 1).
+  hash = (hash ^ (hash >> 33)) * 0xFF51AFD7ED558CCDull;
+  hash = (hash ^ (hash >> 33)) * 0xC4CEB9FE1A85EC53ull;
+  hash ^= hash >> 33;
+  return double(hash >> 11) * 0x1.0p-53 < share;
 }
 
 at::Tensor held_rows_weights(const std::vector<uint8_t>& mask, const MatrixX3i& F, double weight) {

@@ -156,7 +156,14 @@ struct SampleSourceOptions {
   /// (`amt train apparel --skinning CKPT`). Unset: the ground-truth body weights. Called from the
   /// loader threads: must be thread-safe (a frozen network's forward under NoGradGuard is).
   std::function<at::Tensor(const CharacterTensors&)> anchor_body_weights;
+  /// With anchor_body_weights: the share of characters that keep the ground-truth weights instead
+  /// (anchor_truth_character picks them).
+  double anchor_truth_share = 0.0;
 };
+
+/// True when the character `name` keeps its ground-truth anchor weights under `share` (in [0, 1]) and `seed`:
+/// a hash of both below share, so the same characters are picked in every run of that seed.
+bool anchor_truth_character(const std::string& name, double share, uint64_t seed);
 
 /// Samples over one or more shards. Opening reads only attributes, clip infos and apparel masks;
 /// character tensors are computed on first use and cached; frames are read per sample. get() is

@@ -801,6 +801,12 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
   // The local apparel module with --skinning: anchors skinned with the predictor's body weights, as at run
   // time. The predictor is loaded once the shards' joint names are known, before any character is read.
   auto anchor_skinning = std::make_shared<SkinningPredictor>(nullptr);
+  AMT_CHECK(o.anchor_truth_share >= 0.0 && o.anchor_truth_share <= 1.0,
+            "--anchor-truth-share: expected a share in [0, 1], found ", o.anchor_truth_share);
+  AMT_CHECK(o.anchor_truth_share == 0.0 || (local_apparel && !o.skinning_checkpoint.empty()),
+            "--anchor-truth-share: expected the local apparel module with --skinning (the share of characters "
+            "that keep ground-truth anchors instead of the predictor's)");
+  sampling.anchor_truth_share = o.anchor_truth_share;
   if (local_apparel && !o.skinning_checkpoint.empty()) {
     sampling.geodesics = true;
     sampling.anchor_body_weights = [anchor_skinning](const CharacterTensors& c) {

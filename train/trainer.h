@@ -143,6 +143,11 @@ struct TrainOptions {
   /// predictor whose body weights skin its anchors and build its graph, as at run time. Empty uses the
   /// ground-truth body weights.
   std::string skinning_checkpoint;
+  /// Local apparel module with skinning_checkpoint: the share of the training characters whose anchors keep the
+  /// ground-truth body weights (picked by a hash of the seed and the character's name), so that the module
+  /// meets both the predictor's anchors (generated characters, OBJ meshes) and a file's own weights (PMX, skinned
+  /// glTF / VRM, `amt animate --skin-weights auto`). 0: every character on the predictor's.
+  double anchor_truth_share = 0.0;
   /// Loader threads reading samples ahead (0: read on the training thread) and how far ahead.
   int loader_threads = 2;
   int prefetch = 8;

@@ -111,6 +111,32 @@ TEST(Samples, AnchorBodyWeightsSkinTheAnchorsAndBuildTheGraph) {
   EXPECT_TRUE(at::equal(c->apparel_graph.contact_weights, expected));
   EXPECT_FALSE(at::equal(gt->apparel_anchor_weights, expected));  // the ground truth's differ
   EXPECT_TRUE(at::equal(c->body_weights, gt->body_weights));      // the training targets' weights are untouched
+
+  // With every character on the ground truth's anchors (share 1) the predictor is not asked.
+  options.anchor_truth_share = 1.0;
+  had_geodesics = false;
+  SampleSource mixed({micro_dataset()}, options);
+  EXPECT_TRUE(at::equal(mixed.character(0)->apparel_anchor_weights, gt->apparel_anchor_weights));
+  EXPECT_FALSE(had_geodesics);
+}
+
+// The characters that keep ground-truth anchors: none at share 0, all at 1, about the share between, the same
+// for the same seed and others for another.
+TEST(Samples, AnchorTruthShareIsAFixedSubsetOfTheCharacters) {
+  int half = 0, other_seed_differs = 0;
+  for (int k = 0; k < 400; ++k) {
+    const std::string name = "character-" + std::to_string(k);
+    EXPECT_FALSE(anchor_truth_character(name, 0.0, 1));
+    EXPECT_TRUE(anchor_truth_character(name, 1.0, 1));
+    const bool picked = anchor_truth_character(name, 0.5, 1);
+    EXPECT_EQ(picked, anchor_truth_character(name, 0.5, 1));
+    EXPECT_TRUE(!picked || anchor_truth_character(name, 0.75, 1));  // a larger share keeps the smaller's
+    half += picked;
+    other_seed_differs += picked != anchor_truth_character(name, 0.5, 2);
+  }
+  EXPECT_GT(half, 160);
+  EXPECT_LT(half, 240);
+  EXPECT_GT(other_seed_differs, 120);
 }
 
 TEST(Samples, SequenceDependsOnSeedAndIndexOnly) {
@@ -139,10 +165,9 @@ TEST(Samples, SequenceDependsOnSeedAndIndexOnly) {
 // body's own part, nor a part that is apparel alone.
 TEST(Samples, HeldRowsAreTheBodyVerticesOfPartsThatHoldApparel) {
   MatrixX3i F(4, 3);
-  F << 0, 1, 2,   // the body: body vertices only
-      3, 4, 5,    // a piece: 3 is held (body), 4-6 hang
-      4, 5, 6,
-      7, 8, 9;    // a piece of apparel alone
+  F << 0, 1, 2,          // the body: body vertices only
+      3, 4, 5,           // a piece: 3 is held (body), 4-6 hang
+      4, 5, 6, 7, 8, 9;  // a piece of apparel alone
   const std::vector<uint8_t> mask = {0, 0, 0, 0, 1, 1, 1, 1, 1, 1};
   const at::Tensor w = held_rows_weights(mask, F, 5.0);
   EXPECT_TRUE(at::equal(w, at::tensor({1.0f, 1.0f, 1.0f, 5.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f}))) << w;
