@@ -45,9 +45,12 @@ void print_summary(const EvaluationResult& result, const ReportFiles& files) {
     std::cout << r.subset << ", " << r.protocol << ", " << method_label(r.method) << ": PMD " << r.scores.pmd
               << " cm, PMD_a " << r.scores.pmd_a << " cm, PMD_b " << r.scores.pmd_b << " cm, ELS " << r.scores.els
               << ", penetration " << 100.0 * r.scores.penetration_share << " %, tearing "
-              << 100.0 * r.separation.tearing << " %, seam gap p95 " << r.separation.seam_gap_p95_cm << " cm (worst "
-              << r.worst.seam_gap_p95_cm << " cm, " << (r.worst_seam_gap_p95.empty() ? "-" : r.worst_seam_gap_p95)
-              << "), ELS_a " << r.separation.apparel_els << "\n";
+              << 100.0 * r.separation.tearing << " % (against rest lengths " << 100.0 * r.separation.rest_tearing
+              << " %, the ground truth's " << 100.0 * r.separation.ground_truth_rest_tearing
+              << " %; torn where the ground truth deforms " << 100.0 * r.separation.tearing_ground_truth_deformed
+              << " %), seam gap p95 " << r.separation.seam_gap_p95_cm << " cm (worst " << r.worst.seam_gap_p95_cm
+              << " cm, " << (r.worst_seam_gap_p95.empty() ? "-" : r.worst_seam_gap_p95) << "), ELS_a "
+              << r.separation.apparel_els << "\n";
   }
   std::cout << "wrote " << files.markdown << ", " << files.json;
   for (const std::string& p : files.plots) std::cout << ", " << p;

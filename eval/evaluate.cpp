@@ -365,7 +365,8 @@ class ClipScorer {
       : acc_(acc), c_(c), method_(method), protocol_(protocol) {
     row_ = &acc.rows[{method, protocol, c.subset}];
     row_->begin_clip();
-    separation_ = &acc.separation.try_emplace({method, protocol, c.subset, c.name}, c.pairs, c.apparel_E).first->second;
+    separation_ =
+        &acc.separation.try_emplace({method, protocol, c.subset, c.name}, c.pairs, c.apparel_E, c.mesh.V).first->second;
     separation_->begin_clip();
     amplitude_ = &acc.amplitude[{method, protocol, c.subset}];
     if (per_character) {
@@ -442,7 +443,10 @@ void add_separation(MethodScores& row, const Accumulators& acc) {
   const Measure measures[] = {{&SeparationScores::tearing, true, &MethodScores::worst_tearing},
                               {&SeparationScores::seam_gap_p95_cm, true, &MethodScores::worst_seam_gap_p95},
                               {&SeparationScores::seam_gap_max_cm, true, &MethodScores::worst_seam_gap_max},
-                              {&SeparationScores::apparel_els, false, &MethodScores::worst_apparel_els}};
+                              {&SeparationScores::apparel_els, false, &MethodScores::worst_apparel_els},
+                              {&SeparationScores::rest_tearing, true, nullptr},
+                              {&SeparationScores::ground_truth_rest_tearing, true, nullptr},
+                              {&SeparationScores::tearing_ground_truth_deformed, true, nullptr}};
   std::vector<std::pair<std::string, SeparationScores>> characters;
   for (auto it = acc.separation.lower_bound({row.method, row.protocol, row.subset, ""});
        it != acc.separation.end() && std::get<0>(it->first) == row.method && std::get<1>(it->first) == row.protocol &&
@@ -461,6 +465,7 @@ void add_separation(MethodScores& row, const Accumulators& acc) {
       const double v = s.*m.value;
       if (!std::isfinite(v)) continue;
       sum += v, ++count;
+      if (!m.worst_name) continue;
       const double worst = row.worst.*m.value;
       if (!std::isfinite(worst) || (m.larger_is_worse ? v > worst : v < worst))
         row.worst.*m.value = v, row.*m.worst_name = name;
@@ -1043,6 +1048,9 @@ std::string evaluation_json(const EvaluationResult& result) {
   };
   const auto separation = [&](const SeparationScores& s) {
     return Json{{"tearing", number(s.tearing)},
+                {"rest_tearing", number(s.rest_tearing)},
+                {"ground_truth_rest_tearing", number(s.ground_truth_rest_tearing)},
+                {"tearing_ground_truth_deformed", number(s.tearing_ground_truth_deformed)},
                 {"seam_gap_p95_cm", number(s.seam_gap_p95_cm)},
                 {"seam_gap_max_cm", number(s.seam_gap_max_cm)},
                 {"apparel_els", number(s.apparel_els)},

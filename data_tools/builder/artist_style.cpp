@@ -589,11 +589,16 @@ int gap_bin(double cm) {
 }
 }  // namespace
 
-SeparationAccumulator::SeparationAccumulator(MatrixX2i pairs, MatrixX2i edges)
+SeparationAccumulator::SeparationAccumulator(MatrixX2i pairs, MatrixX2i edges, const MatrixX3f& rest)
     : pairs_(std::move(pairs)),
       edges_(std::move(edges)),
       histogram_(size_t(kGapBins), 0),
-      bin_max_cm_(size_t(kGapBins), 0.0) {}
+      bin_max_cm_(size_t(kGapBins), 0.0) {
+  if (rest.rows() == 0) return;
+  rest_lengths_.resize(size_t(edges_.rows()));
+  for (Eigen::Index e = 0; e < edges_.rows(); ++e)
+    rest_lengths_[size_t(e)] = (rest.row(edges_(e, 0)) - rest.row(edges_(e, 1))).norm();
+}
 
 void SeparationAccumulator::begin_clip() {
   frame_els_sum_ = 0, frame_els_count_ = 0;
@@ -610,6 +615,13 @@ void SeparationAccumulator::add_frame(const MatrixX3f& pred, const MatrixX3f& gt
     torn_ += !(off <= 0.5);
     els += 1.0 - off;
     ++counted;
+    if (rest_lengths_.empty() || !(rest_lengths_[size_t(e)] > 1e-9)) continue;
+    const double l_rest = rest_lengths_[size_t(e)];
+    const bool gt_deformed = !(std::abs(l_gt / l_rest - 1.0) <= 0.5);
+    rest_torn_ += !(std::abs((pred.row(edges_(e, 0)) - pred.row(edges_(e, 1))).norm() / l_rest - 1.0) <= 0.5);
+    gt_rest_torn_ += gt_deformed;
+    torn_gt_deformed_ += gt_deformed && !(off <= 0.5);
+    ++rest_edge_frames_;
   }
   edge_frames_ += counted;
   if (counted > 0) frame_els_sum_ += els / counted, ++frame_els_count_;
@@ -637,6 +649,10 @@ SeparationScores SeparationAccumulator::result() const {
   s.edge_frames = edge_frames_;
   s.pair_frames = pair_frames_;
   s.tearing = edge_frames_ > 0 ? double(torn_) / double(edge_frames_) : nan;
+  const double rest_frames = double(rest_edge_frames_);
+  s.rest_tearing = rest_edge_frames_ > 0 ? double(rest_torn_) / rest_frames : nan;
+  s.ground_truth_rest_tearing = rest_edge_frames_ > 0 ? double(gt_rest_torn_) / rest_frames : nan;
+  s.tearing_ground_truth_deformed = rest_edge_frames_ > 0 ? double(torn_gt_deformed_) / rest_frames : nan;
   s.apparel_els = clip_els_count_ > 0 ? clip_els_sum_ / clip_els_count_ : nan;
   s.seam_gap_p95_cm = s.seam_gap_max_cm = nan;
   if (pair_frames_ > 0) {

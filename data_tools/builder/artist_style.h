@@ -158,8 +158,16 @@ MatrixX2i apparel_edges(const MatrixX2i& E, const std::vector<uint8_t>& apparel_
 ///   apparel_els      ELS over apparel edges only: per frame the mean over them of
 ///                    1 - | |e_pred| / |e_gt| - 1 |, averaged over frames, then clips; NaN without apparel edges
 ///   pairs            coincident pairs; edge_frames, pair_frames: the counts measured
+/// With the rest mesh given (NaN without it), against rest lengths instead of the ground truth's:
+///   rest_tearing     share of apparel edge-frames whose predicted length is off its rest length by more than 50 %
+///                    (the prediction's own stretch and squash, whatever the ground truth does)
+///   ground_truth_rest_tearing  the same share of the ground truth
+///   tearing_ground_truth_deformed  share of apparel edge-frames torn (as `tearing`) where the ground truth's own
+///                    edge is off its rest length by more than 50 % (a prediction that keeps such an edge near rest
+///                    counts as torn)
 struct SeparationScores {
   double tearing = 0, seam_gap_p95_cm = 0, seam_gap_max_cm = 0, apparel_els = 0;
+  double rest_tearing = 0, ground_truth_rest_tearing = 0, tearing_ground_truth_deformed = 0;
   int64_t pairs = 0, edge_frames = 0, pair_frames = 0;
 };
 
@@ -168,8 +176,9 @@ struct SeparationScores {
 /// bins (1 % wide) from 1e-4 cm, below which a gap counts as 0.
 class SeparationAccumulator {
  public:
-  /// pairs (P, 2) coincident_pairs of the rest mesh; edges (#E_a, 2) its apparel_edges.
-  SeparationAccumulator(MatrixX2i pairs, MatrixX2i edges);
+  /// pairs (P, 2) coincident_pairs of the rest mesh; edges (#E_a, 2) its apparel_edges; rest (#V, 3) the rest
+  /// mesh for the measures against rest lengths (empty: those are NaN).
+  SeparationAccumulator(MatrixX2i pairs, MatrixX2i edges, const MatrixX3f& rest = MatrixX3f());
   void begin_clip();
   /// pred, gt (#V, 3) metres. A ground truth's own seam gaps: add_frame(gt, rest) (the rest's pairs are
   /// within kCoincidentTolerance).
@@ -179,7 +188,9 @@ class SeparationAccumulator {
 
  private:
   MatrixX2i pairs_, edges_;
+  std::vector<double> rest_lengths_;  // of edges_, empty without a rest mesh
   int64_t torn_ = 0, edge_frames_ = 0, pair_frames_ = 0;
+  int64_t rest_torn_ = 0, gt_rest_torn_ = 0, torn_gt_deformed_ = 0, rest_edge_frames_ = 0;
   std::vector<int64_t> histogram_;  // pair-frames per gap bin ([0]: below the first)
   std::vector<double> bin_max_cm_;  // the largest gap of each bin
   double max_gap_cm_ = 0;

@@ -429,6 +429,21 @@ TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
   // 3 torn edge-frames; in frame 1 their ELS terms are 1 - 0.6 each, every other term 1.
   EXPECT_NEAR(r->separation.tearing, 3.0 / (4.0 * apparel_edges_count), 1e-12);
   EXPECT_NEAR(r->separation.apparel_els, 1.0 - 3 * 0.6 / (4.0 * apparel_edges_count), 1e-5);
+  // Against rest lengths: the same 3 edge-frames (the ground truth keeps them at rest), none of the ground
+  // truth's own, so none torn where the ground truth deforms.
+  EXPECT_NEAR(r->separation.rest_tearing, 3.0 / (4.0 * apparel_edges_count), 1e-12);
+  EXPECT_EQ(r->separation.ground_truth_rest_tearing, 0.0);
+  EXPECT_EQ(r->separation.tearing_ground_truth_deformed, 0.0);
+  // Roles swapped: a ground truth that stretches those edges by 1.6 in frame 1 against a prediction at rest
+  // length: 1 / 1.6 is off by 37.5 %, not torn; the ground truth's own deformation is counted.
+  const EvaluationResult swapped = evaluate_predictions(
+      {dir + "/predicted.h5"}, test::copy_as_predictions(dir + "/truth.h5", dir + "/truth_predicted.h5"), options);
+  const MethodScores* w = swapped.find("predictions", "file", kHeldOutCharacters);
+  ASSERT_NE(w, nullptr);
+  EXPECT_EQ(w->separation.tearing, 0.0);
+  EXPECT_EQ(w->separation.rest_tearing, 0.0);
+  EXPECT_NEAR(w->separation.ground_truth_rest_tearing, 3.0 / (4.0 * apparel_edges_count), 1e-12);
+  EXPECT_EQ(w->separation.tearing_ground_truth_deformed, 0.0);
   // Gaps: frame 1 one pair 0.6 cm (T2's third corner pulled off its twin), frame 2 both pairs 10 cm: of 8
   // pair-frames the nearest-rank 95th percentile is the 8th, 10 cm.
   EXPECT_NEAR(r->separation.seam_gap_max_cm, 10.0, 1e-3);
