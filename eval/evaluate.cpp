@@ -716,6 +716,31 @@ int score_cloth_retargeting(std::vector<std::unique_ptr<DatasetReader>>& readers
 
 }  // namespace
 
+std::vector<int32_t> rest_vertex_match(const MatrixX3f& truth, const MatrixX3f& predicted, float tolerance) {
+  if (truth.rows() != predicted.rows()) return {};
+  const Eigen::Index N = truth.rows();
+  std::vector<int32_t> match(static_cast<size_t>(N));
+  if (N == 0 || (truth - predicted).cwiseAbs().maxCoeff() <= tolerance) {
+    for (Eigen::Index i = 0; i < N; ++i) match[size_t(i)] = int32_t(i);
+    return match;
+  }
+  // Both sorted by position (copies of one position in index order), then paired rank by rank.
+  const auto sorted = [N](const MatrixX3f& V) {
+    std::vector<int32_t> order(static_cast<size_t>(N));
+    for (Eigen::Index i = 0; i < N; ++i) order[size_t(i)] = int32_t(i);
+    std::stable_sort(order.begin(), order.end(), [&V](int32_t a, int32_t b) {
+      return std::make_tuple(V(a, 0), V(a, 1), V(a, 2)) < std::make_tuple(V(b, 0), V(b, 1), V(b, 2));
+    });
+    return order;
+  };
+  const std::vector<int32_t> t = sorted(truth), p = sorted(predicted);
+  for (size_t k = 0; k < size_t(N); ++k) {
+    if ((truth.row(t[k]) - predicted.row(p[k])).cwiseAbs().maxCoeff() > tolerance) return {};
+    match[size_t(t[k])] = p[k];
+  }
+  return match;
+}
+
 // === Methods
 
 std::vector<std::string> evaluation_methods() {
@@ -990,6 +1015,7 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
 
   Accumulators acc;
   CharacterCaches characters;
+  std::map<std::string, std::vector<int32_t>> matches;  // per predicted character: rest_vertex_match
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   for (size_t k = 0; k < clips.size(); ++k) {
     const EvalClip& clip = clips[k];
@@ -1005,8 +1031,27 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
     ++result.clips[clip.subset];
     acc.clip = clip.info.name;
     acc.shard = clip.shard;
+    auto match = matches.find(p.character);
+    if (match == matches.end()) {
+      std::vector<int32_t> rows = rest_vertex_match(c.mesh.V, predicted.read_character(p.character).mesh.V);
+      AMT_CHECK(!rows.empty(), predictions, ": /characters/", p.character,
+                ": rest_vertices: expected the rest mesh of the ground truth's ", clip.info.character,
+                " (its vertices, in any order), found other positions");
+      bool identity = true;
+      for (size_t i = 0; i < rows.size(); ++i) identity = identity && rows[i] == int32_t(i);
+      if (!identity)
+        std::fprintf(stderr,
+                     "eval: %s: /characters/%s: vertices in another order than %s's, matched by rest position\n",
+                     predictions.c_str(), p.character.c_str(), clip.info.character.c_str());
+      match = matches.emplace(p.character, std::move(rows)).first;
+    }
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
-    const MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
+    MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
+    {
+      const MatrixX3f stored = pred_all;
+      for (int64_t t = 0; t < T; ++t)
+        for (int64_t i = 0; i < N; ++i) pred_all.row(t * N + i) = stored.row(t * N + match->second[size_t(i)]);
+    }
     const int64_t J = static_cast<int64_t>(reader.joint_names().size());
     at::Tensor skinned_all;
     {

@@ -197,10 +197,18 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
 /// Scores a dataset file of predicted vertices (e.g. written by `amt animate --out x.h5`) against the
 /// ground truth of the shards: every held-out clip of the shards that the predictions file has (same
 /// clip name, same character vertex count and frame count) is scored over all its frames as method
-/// "predictions", protocol "file". Throws amt::Error for a missing file, mismatched shapes or no clip
-/// in common, or options.artist_style (a predictions file is of the characters as built).
+/// "predictions", protocol "file". The predicted character's rest mesh must be the ground truth's, its vertices
+/// in any order (rest_vertex_match: a dataset built from a PMX model puts the body first, `amt animate` keeps
+/// the file's order). Throws amt::Error for a missing file, a file without the mark of predictions (unless
+/// options.ground_truth_as_predictions), mismatched shapes or rest meshes, no clip in common, or
+/// options.artist_style (a predictions file is of the characters as built).
 EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, const std::string& predictions,
                                       const EvaluateOptions& options);
+
+/// For each vertex of the rest mesh `truth` (N, 3), the row of `predicted` (N, 3) at the same place: the identity
+/// when the two agree row by row within `tolerance` (metres), else the match of equal positions after sorting both
+/// (copies of one position paired in index order). Empty when the meshes do not hold the same positions.
+std::vector<int32_t> rest_vertex_match(const MatrixX3f& truth, const MatrixX3f& predicted, float tolerance = 1e-5f);
 
 /// The result as JSON text (NaN as null): rows, segmentation, characters, curves, notes.
 std::string evaluation_json(const EvaluationResult& result);

@@ -3,6 +3,7 @@
 // own physics, with its one-line errors (a character without a physics rig, a PMX without simulated bodies).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -20,6 +21,25 @@ namespace fs = std::filesystem;
 
 std::string cmu_walk() {
   return std::string(AMT_ASSET_DIR) + "/mocap/cmu/02_01.bvh";
+}
+
+// The model with its vertices in reverse file order (faces follow; PMX morphs are not read).
+PmxModel with_reversed_vertices(PmxModel m) {
+  PmxVertices& v = m.vertices;
+  const int n = int(v.positions.rows());
+  v.positions = v.positions.colwise().reverse().eval();
+  v.normals = v.normals.colwise().reverse().eval();
+  v.uvs = v.uvs.colwise().reverse().eval();
+  for (auto& extra : v.additional_uvs) extra = extra.colwise().reverse().eval();
+  std::reverse(v.deform.begin(), v.deform.end());
+  v.bone_indices = v.bone_indices.colwise().reverse().eval();
+  v.bone_weights = v.bone_weights.colwise().reverse().eval();
+  v.sdef_c = v.sdef_c.colwise().reverse().eval();
+  v.sdef_r0 = v.sdef_r0.colwise().reverse().eval();
+  v.sdef_r1 = v.sdef_r1.colwise().reverse().eval();
+  v.edge_scale = v.edge_scale.reverse().eval();
+  m.faces = (n - 1 - m.faces.array()).matrix();
+  return m;
 }
 
 TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
@@ -42,6 +62,31 @@ TEST(PmxCommands, DatasetBuildFromAPmxThenCheckAndInfo) {
   int apparel = 0;
   for (const uint8_t m : character.apparel_mask) apparel += m;
   EXPECT_EQ(apparel, 24);  // the three hair boxes
+
+  // amt animate on a PMX whose hair comes first in the file, scored against the dataset built from it, which puts
+  // the body first: matched by rest position, the body exact with the model's own weights.
+  fs::create_directories(dir / "reversed");
+  write_pmx(with_reversed_vertices(test::pmx_humanoid()), (dir / "reversed" / "humanoid.pmx").string());
+  test::expect_success(dir, {"dataset", "build", "--out", "reversed_data", "--pmx", "reversed", "--motions", "",
+                             "--procedural", "2", "--frames", "12", "--threads", "1"});
+  std::string held_out;
+  const DatasetReader reversed((dir / "reversed_data" / "pmx-0000.h5").string());
+  for (const std::string& clip : reversed.clip_names())
+    if (reversed.clip_info(clip).split == "test") held_out = clip;
+  ASSERT_FALSE(held_out.empty());
+  test::expect_success(
+      dir, {"animate", "--character", "reversed/humanoid.pmx", "--motion", "reversed_data/pmx-0000.h5:" + held_out,
+            "--apparel", "physics", "--out", "pred.h5", "--threads", "1", "--quiet"});
+  const test::CommandResult scored =
+      test::expect_success(dir, {"eval", "--data", "reversed_data", "--predictions", "pred.h5", "--out", "scored",
+                                 "--no-plots", "--no-penetration", "--threads", "1", "--quiet"});
+  EXPECT_NE(scored.err.find("pred.h5: /characters/humanoid: vertices in another order than pmx-0000's, matched by "
+                            "rest position"),
+            std::string::npos)
+      << scored.err;
+  const size_t body = scored.out.find("PMD_b ");
+  ASSERT_NE(body, std::string::npos) << scored.out;
+  EXPECT_LT(std::stod(scored.out.substr(body + 6)), 1e-3) << scored.out;  // cm
 
   const test::CommandResult info = test::expect_success(dir, {"dataset", "info", "data", "--threads", "1"});
   EXPECT_NE(info.out.find("totals: 1 character"), std::string::npos) << info.out;

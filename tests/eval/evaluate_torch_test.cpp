@@ -285,6 +285,22 @@ TEST(Evaluate, PredictionsFileOfTheGroundTruthScoresZero) {
             std::string::npos);
 }
 
+// The rows of a predicted rest mesh that hold the ground truth's vertices: the identity within the tolerance, a
+// reordering matched by position (copies of one position in index order), nothing for other positions.
+TEST(Evaluate, RestVertexMatchFindsAReorderingOfTheSameMesh) {
+  MatrixX3f truth(4, 3), predicted(4, 3);
+  const Eigen::RowVector3f a(0, 1, 0), b(0.5f, 0, 0), c(0, 0, -2);
+  truth << a, b, a, c;
+  predicted << c, a, b, a;
+  EXPECT_EQ(rest_vertex_match(truth, predicted), (std::vector<int32_t>{1, 2, 3, 0}));
+  MatrixX3f nudged = truth;
+  nudged(3, 2) += 5e-6f;  // within 1e-5 m
+  EXPECT_EQ(rest_vertex_match(truth, nudged), (std::vector<int32_t>{0, 1, 2, 3}));
+  predicted(0, 1) = 0.01f;  // c moved by 1 cm: not the same mesh
+  EXPECT_TRUE(rest_vertex_match(truth, predicted).empty());
+  EXPECT_TRUE(rest_vertex_match(truth, MatrixX3f(truth.topRows(3))).empty());
+}
+
 TEST(Evaluate, PredictionShiftedByOneCentimetreScoresOneCentimetre) {
   test::use_one_thread();
   const std::string dir = test::test_directory("eval_shifted");
