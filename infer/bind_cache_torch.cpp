@@ -232,6 +232,7 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
     result.bound = bind_character(bundle, V, F, Jt, options);
     if (!cache_path.empty()) save_bind(cache_path, key, result.bound);
   }
+  result.bound.given_weights = weights.rows() > 0;  // the cache key holds the weights
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

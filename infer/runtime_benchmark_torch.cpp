@@ -82,6 +82,7 @@ ModelBundle with_reference_apparel(const ModelBundle& bundle) {
   reference.apparel = ApparelDisplacementNet(o);
   reference.apparel->eval();
   reference.apparel_dynamics = ApparelDynamicsNet(nullptr);
+  reference.apparel_dynamics_own_weights = ApparelDynamicsNet(nullptr);
   return reference;
 }
 

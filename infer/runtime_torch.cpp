@@ -741,6 +741,9 @@ AnimateSummary animate(const AnimateOptions& o) {
                                (o.skin_weights == "model" ? ""
                                                           : " (--skin-weights auto: own weights come from skinned "
                                                             "glTF / VRM and PMX files only)");
+  if (own_weights.rows() > 0 && !bundle.apparel_dynamics_own_weights.is_empty())
+    s.weights_source +=
+        "; the apparel module trained on anchors of such weights (" + std::string(kApparelOwnWeightsCheckpoint) + ")";
   const MotionPlayer player(source, character, o.playback);
   if (o.verbose) {
     print_inputs(character, source);

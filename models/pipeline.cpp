@@ -7,9 +7,9 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
-#include <cstdlib>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <numeric>
@@ -223,6 +223,23 @@ ModelBundle load_model_bundle(const std::string& dir) {
     AMT_CHECK(out->options.variant == variant, p, ": options.variant: expected the ", variant_name(variant),
               " variant (from the file name), found ", variant_name(out->options.variant));
   };
+  const std::string own = path_of(kApparelOwnWeightsCheckpoint);
+  if (fs::exists(own, error)) {
+    AMT_CHECK(bundle.local_apparel(), own, ": expected it beside a local apparel module (", kApparelCheckpoint,
+              " is the global form)");
+    CheckpointInfo own_info;
+    bundle.apparel_dynamics_own_weights =
+        load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(own, ModuleKind::kApparel, own_info);
+    check_skeleton(own, own_info);
+    const ApparelDynamicsOptions &a = bundle.apparel_dynamics->options,
+                                 &b = bundle.apparel_dynamics_own_weights->options;
+    AMT_CHECK(b.handle_spacing == a.handle_spacing && b.anchor == a.anchor, own, ": options: expected the handles (",
+              a.handle_spacing, " m) and anchor (", a.anchor, ") of ", kApparelCheckpoint, ", found ", b.handle_spacing,
+              " m and ", b.anchor);
+    AMT_CHECK(bundle.apparel_dynamics_own_weights->normalizers_frozen(), own,
+              ": input_normalizer: expected frozen statistics (a checkpoint written after the normaliser warm-up), "
+              "found none");
+  }
   optional_variant(kSkinningNoGeodesicCheckpoint, SkinningVariant::kNoGeodesic, bundle.skinning_no_geodesic);
   optional_variant(kSkinningSortedCheckpoint, SkinningVariant::kSortByGeodesic, bundle.skinning_sorted);
   return bundle;
@@ -393,6 +410,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   set_handles();
 
   // Skinning weights (eq. 5-7) of the body, and optionally of every vertex.
+  c.given_weights = options.weights.defined();
   if (options.weights.defined()) {
     AMT_CHECK(options.weights.dim() == 2 && options.weights.size(0) == N && options.weights.size(1) == J,
               "bind: weights: expected (", N, ", ", J, "), found ", options.weights.sizes());
@@ -625,14 +643,18 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
         // The module moves the handles; every vertex follows its handles' offsets from their anchors.
         const at::Tensor S_h = anchor.index_select(0, rig_.rows);
         const at::Tensor window_S_h = at::cat({handle_history_anchors_, S_h.unsqueeze(0)}, 0).unsqueeze(0);
-        const at::Tensor A_h = bundle_.apparel_dynamics.ptr()
+        const at::Tensor A_h = bundle_.apparel_dynamics_for(character_.given_weights)
+                                   .ptr()
                                    ->step(handle_history_.unsqueeze(0), window_T, window_S_h, handle_graph_)
                                    .squeeze(0);
         out.A_hat = follow_handles(A_h, S_h, anchor, rig_);
         handle_history_ = at::cat({handle_history_.narrow(0, 1, 2), A_h.unsqueeze(0)}, 0);
         handle_history_anchors_ = window_S_h.squeeze(0).narrow(0, 1, 3);
       } else if (source_ == ApparelSource::kNetwork) {
-        out.A_hat = bundle_.apparel_dynamics.ptr()->step(h, window_T, window_S, character_.apparel_graph()).squeeze(0);
+        out.A_hat = bundle_.apparel_dynamics_for(character_.given_weights)
+                        .ptr()
+                        ->step(h, window_T, window_S, character_.apparel_graph())
+                        .squeeze(0);
       } else {
         const double inertia = source_ == ApparelSource::kInertial ? inertia_ : 0.0;
         out.A_hat = detail_rule_step(h, window_T, window_S, character_.apparel_frame_joints, inertia).squeeze(0);

@@ -41,6 +41,10 @@ struct ModelBundle {
   SkinningPredictor skinning{nullptr};
   ApparelDisplacementNet apparel{nullptr};
   ApparelDynamicsNet apparel_dynamics{nullptr};
+  /// The local apparel module for characters bound with given weights (BindOptions::weights: a file's own skin,
+  /// the ground truth), trained on anchors from such weights (kApparelOwnWeightsCheckpoint); null: apparel_dynamics
+  /// for every character. Its options match apparel_dynamics' (the same handles).
+  ApparelDynamicsNet apparel_dynamics_own_weights{nullptr};
   JointRefiner refiner{nullptr};
   /// The Table 4 ablation variants of f_s, null when their checkpoints are absent.
   SkinningPredictor skinning_no_geodesic{nullptr};
@@ -55,6 +59,10 @@ struct ModelBundle {
   /// The anchor of the apparel module (ApparelDynamicsOptions::anchor; "nearest" for the global form,
   /// whose skinned anchor is the nearest body vertex's), which binding gives every character.
   std::string apparel_anchor() const { return local_apparel() ? apparel_dynamics->options.anchor : "nearest"; }
+  /// The local apparel module that steps a character bound with given weights (`given_weights`) or not.
+  const ApparelDynamicsNet& apparel_dynamics_for(bool given_weights) const {
+    return given_weights && !apparel_dynamics_own_weights.is_empty() ? apparel_dynamics_own_weights : apparel_dynamics;
+  }
   /// f_d as a module, whichever form it is.
   const torch::nn::Module* apparel_module() const;
   /// The skinning predictor of `variant`: skinning, skinning_no_geodesic or skinning_sorted. Throws
@@ -67,6 +75,9 @@ inline constexpr const char* kSegmenterCheckpoint = "segmenter.ckpt";
 inline constexpr const char* kSkinningCheckpoint = "skinning.ckpt";
 inline constexpr const char* kApparelCheckpoint = "apparel.ckpt";
 inline constexpr const char* kRefinerCheckpoint = "refiner.ckpt";
+/// Optional: the local apparel module for characters bound with their own skin weights
+/// (ModelBundle::apparel_dynamics_own_weights).
+inline constexpr const char* kApparelOwnWeightsCheckpoint = "apparel_own_weights.ckpt";
 inline constexpr const char* kSkinningNoGeodesicCheckpoint = "skinning_no_geodesic.ckpt";
 inline constexpr const char* kSkinningSortedCheckpoint = "skinning_sorted.ckpt";
 
@@ -127,6 +138,9 @@ struct BoundCharacter {
   at::Tensor V, faces, joints;
   /// edges (E, 2) int64 unique mesh edges (i < j).
   at::Tensor edges;
+  /// Whether the weights were given (BindOptions::weights) rather than predicted: such a character's apparel
+  /// steps with ModelBundle::apparel_dynamics_for(true).
+  bool given_weights = false;
   /// apparel_prob (N) float p̂ of the segmenter (computed even when the mask is overridden).
   at::Tensor apparel_prob;
   /// apparel_mask (N) bool, the mask in use: the override, or p̂ > 0.5 with each piece made to hang from one

@@ -80,18 +80,21 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   const std::string kSegmenterBase = "segmenter_base.ckpt";
   const std::set<std::string> covered = {
       kSegmenterCheckpoint,          kSkinningCheckpoint,       kApparelCheckpoint, kRefinerCheckpoint,
-      kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint, kApparelVertices,   kSegmenterBase};
+      kSkinningNoGeodesicCheckpoint, kSkinningSortedCheckpoint, kApparelVertices,   kSegmenterBase,
+      kApparelOwnWeightsCheckpoint};
   for (const std::string& name : shipped) {
     EXPECT_TRUE(covered.count(name)) << kPretrained.string() << "/" << name
                                      << ": a shipped checkpoint this test does not run: add it here";
   }
   const ModelBundle bundle = load_model_bundle(kPretrained.string());
-  const std::map<std::string, bool> loaded = {{kSegmenterCheckpoint, !bundle.segmenter.is_empty()},
-                                              {kSkinningCheckpoint, !bundle.skinning.is_empty()},
-                                              {kApparelCheckpoint, bundle.apparel_module() != nullptr},
-                                              {kRefinerCheckpoint, !bundle.refiner.is_empty()},
-                                              {kSkinningNoGeodesicCheckpoint, !bundle.skinning_no_geodesic.is_empty()},
-                                              {kSkinningSortedCheckpoint, !bundle.skinning_sorted.is_empty()}};
+  const std::map<std::string, bool> loaded = {
+      {kSegmenterCheckpoint, !bundle.segmenter.is_empty()},
+      {kSkinningCheckpoint, !bundle.skinning.is_empty()},
+      {kApparelCheckpoint, bundle.apparel_module() != nullptr},
+      {kRefinerCheckpoint, !bundle.refiner.is_empty()},
+      {kSkinningNoGeodesicCheckpoint, !bundle.skinning_no_geodesic.is_empty()},
+      {kSkinningSortedCheckpoint, !bundle.skinning_sorted.is_empty()},
+      {kApparelOwnWeightsCheckpoint, !bundle.apparel_dynamics_own_weights.is_empty()}};
   for (const std::string& name : shipped) {
     if (loaded.count(name)) {
       EXPECT_TRUE(loaded.at(name)) << name << " is in the folder but was not loaded";
@@ -138,7 +141,7 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
   if (shipped.count(kApparelVertices)) {
     const fs::path per_vertex = test::temp_dir("pretrained_per_vertex");
     for (const std::string& name : shipped) {
-      if (name == kApparelCheckpoint || name == kApparelVertices) continue;
+      if (name == kApparelCheckpoint || name == kApparelVertices || name == kApparelOwnWeightsCheckpoint) continue;
       fs::copy_file(kPretrained / name, per_vertex / name, fs::copy_options::overwrite_existing);
     }
     fs::copy_file(kPretrained / kApparelVertices, per_vertex / kApparelCheckpoint,
@@ -154,6 +157,22 @@ TEST(PretrainedModel, EveryShippedCheckpointLoadsAndRunsOnAGeneratedCharacter) {
     for (size_t t = 0; t < frames.size(); ++t) {
       const at::Tensor out = stepper.step(frames[t]);
       expect_finite(out, "per-vertex module, frame " + std::to_string(t));
+      EXPECT_LT((out - frames[t][0].select(1, 3)).norm(2, -1).max().item<float>(), diagonal) << "frame " << t;
+    }
+  }
+
+  if (shipped.count(kApparelOwnWeightsCheckpoint)) {
+    // apparel_own_weights.ckpt: a character bound with given weights (here all on the pelvis) steps with it.
+    BindOptions options;
+    options.apparel_mask = mask;
+    options.weights = at::zeros({N, J});
+    options.weights.select(1, 0).fill_(1.0f);
+    const BoundCharacter bound = bind_character(bundle, V, F, joints, options);
+    ASSERT_TRUE(bound.given_weights);
+    PipelineStepper stepper(bundle, bound, rest_apparel_history(bound));
+    for (size_t t = 0; t < frames.size(); ++t) {
+      const at::Tensor out = stepper.step(frames[t]);
+      expect_finite(out, "own-weights module, frame " + std::to_string(t));
       EXPECT_LT((out - frames[t][0].select(1, 3)).norm(2, -1).max().item<float>(), diagonal) << "frame " << t;
     }
   }

@@ -15,8 +15,8 @@
 #include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/segmentation_features.h"
 #include "data_tools/geometry/skeleton.h"
-#include "micro_dataset.h"
 #include "fresh_model.h"
+#include "micro_dataset.h"
 #include "models/module_options.h"
 #include "train/samples.h"
 
@@ -28,7 +28,8 @@ namespace fs = std::filesystem;
 // === Helpers
 
 // A model folder of freshly initialised (seeded) modules in the test's scratch folder.
-std::string write_fresh_bundle(const std::string& name, const std::vector<std::string>& joints = canonical_joint_names()) {
+std::string write_fresh_bundle(const std::string& name,
+                               const std::vector<std::string>& joints = canonical_joint_names()) {
   return test::write_fresh_model(test::test_directory(name), 7, joints);
 }
 
@@ -132,7 +133,8 @@ TEST(PipelineBundle, SegmenterCheckpointsOfEachInputsLoadAndReadTheirOwnFeatures
     const at::Tensor X_t = at::from_blob(const_cast<float*>(X.data()), {6, X.cols()}, at::kFloat);
     torch::NoGradGuard no_grad;
     const at::Tensor expected = net->probabilities(V_t, inputs == "positions" ? at::Tensor() : X_t);
-    EXPECT_TRUE(at::allclose(apparel_probabilities(bundle, V, F, skeleton.rest_joints), expected, 1e-5, 1e-6)) << inputs;
+    EXPECT_TRUE(at::allclose(apparel_probabilities(bundle, V, F, skeleton.rest_joints), expected, 1e-5, 1e-6))
+        << inputs;
   }
   EXPECT_NE(test::error_of([&] { load_segmenter_bundle(dir + "/nowhere.ckpt"); }).find("no such checkpoint"),
             std::string::npos);
@@ -286,8 +288,8 @@ TEST(PipelineStepper, EqualsRolloutPlusRefinerOnTheSameInputs) {
 
 TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
   test::use_one_thread();
-  const std::string dir = test::write_fresh_model(test::test_directory("step_local_bundle"), 5,
-                                                  canonical_joint_names(), /*local_apparel=*/true);
+  const std::string dir = test::write_fresh_model(test::test_directory("step_local_bundle"), 5, canonical_joint_names(),
+                                                  /*local_apparel=*/true);
   const std::string data = test::test_directory("step_local_data") + "/micro.h5";
   test::write_micro_dataset(data, {200, 12, 1, {}});
   const ModelBundle bundle = load_model_bundle(dir);
@@ -385,6 +387,55 @@ TEST(PipelineStepper, TheStrainLimitBoundsTheModulesStretchAndLeavesTheRulesAlon
   hold_raw.set_strain_limit(0.0f);
   EXPECT_EQ(hold.strain_limit(), 0.0f);
   EXPECT_TRUE(at::equal(hold.step_detailed(motion[3]).A_hat, hold_raw.step_detailed(motion[3]).A_hat));
+}
+
+// With apparel_own_weights.ckpt in the model folder, a character bound with given weights (its own skin) steps with
+// that module and one with predicted weights with apparel.ckpt: each output equals that of a model folder holding
+// only the module it should use.
+TEST(PipelineStepper, GivenWeightsStepWithTheOwnWeightsModule) {
+  test::use_one_thread();
+  namespace fs = std::filesystem;
+  const fs::path root = test::test_directory("own_weights_bundle");
+  const std::string a = test::write_fresh_model(root / "a", 5, canonical_joint_names(), /*local_apparel=*/true);
+  const std::string b = test::write_fresh_model(root / "b", 6, canonical_joint_names(), /*local_apparel=*/true);
+  fs::create_directories(root / "both");
+  for (const auto& entry : fs::directory_iterator(a))
+    fs::copy_file(entry.path(), root / "both" / entry.path().filename(), fs::copy_options::overwrite_existing);
+  fs::copy_file(fs::path(b) / kApparelCheckpoint, root / "both" / kApparelOwnWeightsCheckpoint,
+                fs::copy_options::overwrite_existing);
+  const ModelBundle only_a = load_model_bundle(a), only_b = load_model_bundle(b);
+  const ModelBundle both = load_model_bundle((root / "both").string());
+  ASSERT_FALSE(both.apparel_dynamics_own_weights.is_empty());
+  EXPECT_TRUE(only_a.apparel_dynamics_own_weights.is_empty());
+
+  const std::string data = test::test_directory("own_weights_data") + "/micro.h5";
+  test::write_micro_dataset(data, {200, 12, 1, {}});
+  const MicroCharacter c = read_micro(data);
+  const at::Tensor motion = read_walk(data, 3).first;
+  const auto run = [&](const ModelBundle& bundle, bool given) {
+    BindOptions options;
+    options.apparel_mask = c.mask;
+    if (given)
+      options.weights =
+          at::from_blob(const_cast<float*>(c.data.body_weights.data()), {c.V.size(0), 22}, at::kFloat).clone();
+    const BoundCharacter bound = bind_character(bundle, c.V, c.F, c.joints, options);
+    EXPECT_EQ(bound.given_weights, given);
+    PipelineStepper stepper(bundle, bound, rest_apparel_history(bound), PipelineStages::kBodyApparel);
+    at::Tensor out;
+    for (int t = 0; t < 3; ++t) out = stepper.step(motion[t]);
+    return out;
+  };
+  const at::Tensor given = run(both, true), predicted = run(both, false);
+  EXPECT_TRUE(at::equal(given, run(only_b, true)));
+  EXPECT_TRUE(at::equal(predicted, run(only_a, false)));
+  EXPECT_FALSE(at::equal(given, run(only_a, true)));  // the two modules differ
+
+  // An own-weights module of other handles is refused, naming the file and both settings.
+  test::write_fresh_model(root / "c", 7, canonical_joint_names(), /*local_apparel=*/true, /*handle_spacing=*/0.03);
+  fs::copy_file(root / "c" / kApparelCheckpoint, root / "both" / kApparelOwnWeightsCheckpoint,
+                fs::copy_options::overwrite_existing);
+  const std::string e = test::error_of([&] { load_model_bundle((root / "both").string()); });
+  EXPECT_NE(e.find("apparel_own_weights.ckpt: options: expected the handles (0 m)"), std::string::npos) << e;
 }
 
 TEST(PipelineStart, RestHistoryAndLeadIn) {
