@@ -16,7 +16,8 @@
 # stages, SKINNING_STEPS (6000, also for each Table 4
 # variant, so the three compare at the same budget), APPAREL_ONE_STEP_STEPS (30000), APPAREL_STEPS
 # (16000), APPAREL_HANDLE_STEPS (10000) and APPAREL_FINE_HANDLE_STEPS (4000) for the apparel module's four
-# stages, HANDLES_DATA (the data of the last two, default: DATA_DIR), REFINER_STEPS (2000), and
+# stages, HANDLES_DATA (the data of the last two, default: DATA_DIR), APPAREL_OWN_STEPS (4000, each of the two runs
+# of apparel_own_weights.ckpt, the module for characters with their own skin), REFINER_STEPS (2000), and
 # APPAREL_SKINNING: the
 # skinning checkpoint whose predicted body weights skin the apparel module's anchors and the refiner's
 # body during training, as at run time (default <OUT_DIR>/skinning.ckpt; "none" for the ground-truth
@@ -69,7 +70,7 @@ run() {  # run NAME ARGS...: one training run and its wall time
   local name=$1 start=$SECONDS
   shift
   echo "== $name: $amt train $*" >&2
-  "$amt" train "$@"
+  "$amt" train "$@" || { echo "== $name: failed after $((SECONDS - start)) s" >&2; return 1; }
   echo "== $name: wall $((SECONDS - start)) s" >&2
 }
 
@@ -139,6 +140,25 @@ if [[ $modules == *" apparel "* ]]; then
       "$amt" dataset artist-style "$shard" --out "$artist_data/$name" --max-clips 16 --threads 1 --quiet || return 1
     done
   }
+  own_weights_module() {
+    # apparel_own_weights.ckpt: the module for characters with their own skin (amt animate --skin-weights auto on a
+    # PMX, skinned glTF or VRM), whose anchors come from those weights: the shipped module fine-tuned with half of
+    # the characters on ground-truth anchors (--anchor-truth-share 0.5; all of them without a predictor), two runs
+    # of APPAREL_OWN_STEPS (4000) each, seeds + 2 and + 3.
+    local share=()
+    [[ ${#skinning_args[@]} -gt 0 ]] && share=(--anchor-truth-share 0.5)
+    local init=$out/apparel.ckpt stage k
+    for k in 1 2; do
+      stage=apparel_own_weights_$k
+      run "$stage" apparel --data "${handles_data[@]}" "$artist_data" --seed "$((seed + 1 + k))" \
+        --lr-schedule cosine --threads 1 --validation-samples 16 --batch 1 "${skinning_args[@]}" "${share[@]}" \
+        --out "$out/$stage" --checkpoint-every 500 --validate-every 1000 --init "$init" --handle-spacing 0.02 \
+        --lr 1e-4 --steps "${APPAREL_OWN_STEPS:-4000}" --window 63 --free-run 40 --apparel-loss distance \
+        --unroll 5:0.3,20:1 || return 1
+      init=$out/$stage/apparel.ckpt
+    done
+    cp "$init" "$out/apparel_own_weights.ckpt"
+  }
   apparel_then_refiner() {
     # The predictor trained here must be written before the apparel module reads it.
     if [[ -n ${skinning_pid:-} && $anchor_skinning == "$out/skinning.ckpt" ]]; then
@@ -178,6 +198,7 @@ if [[ $modules == *" apparel "* ]]; then
         --validate-every 1000 --init "$out/apparel_artist_style/apparel.ckpt" --handle-spacing 0.02 --lr 1e-4 \
         --steps "${APPAREL_ARTIST_MORE_STEPS:-6000}" --window 63 --free-run 40 --apparel-loss distance \
         --unroll 5:0.3,20:1 &&
+      own_weights_module &&
       run refiner refiner "${common[@]}" "${skinning_args[@]}" --steps "${REFINER_STEPS:-2000}" \
         --apparel "$out/apparel.ckpt" --edge-weight 1 \
         --refiner-options "$refiner"

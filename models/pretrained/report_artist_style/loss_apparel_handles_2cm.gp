@@ -1,5 +1,5 @@
 set terminal pngcairo size 900,540
-set output 'models/pretrained/report_artist_style/loss_apparel_handles_2cm.png.tmp'
+set output 'models/pretrained/report_artist_style/loss_apparel_handles_2cm.png.amt-tmp'
 set title 'Training loss: apparel_handles_2cm'
 set xlabel 'step'
 set ylabel 'loss'

@@ -1,5 +1,5 @@
 set terminal pngcairo size 900,540
-set output 'models/pretrained/report_artist_style/loss_segmenter_artist_style.png.tmp'
+set output 'models/pretrained/report_artist_style/loss_segmenter_artist_style.png.amt-tmp'
 set title 'Training loss: segmenter_artist_style'
 set xlabel 'step'
 set ylabel 'loss'

@@ -1,5 +1,5 @@
 set terminal pngcairo size 900,540
-set output 'models/pretrained/report_artist_style/loss_skinning_no_geodesic.png.tmp'
+set output 'models/pretrained/report_artist_style/loss_skinning_no_geodesic.png.amt-tmp'
 set title 'Training loss: skinning_no_geodesic'
 set xlabel 'step'
 set ylabel 'loss'

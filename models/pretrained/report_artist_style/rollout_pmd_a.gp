@@ -1,5 +1,5 @@
 set terminal pngcairo size 900,540
-set output 'models/pretrained/report_artist_style/rollout_pmd_a.png.tmp'
+set output 'models/pretrained/report_artist_style/rollout_pmd_a.png.amt-tmp'
 set title 'PMD_a over rollout frames'
 set xlabel 'frame'
 set ylabel 'PMD_a (cm)'
