@@ -1015,7 +1015,8 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
 
   Accumulators acc;
   CharacterCaches characters;
-  std::map<std::string, std::vector<int32_t>> matches;  // per predicted character: rest_vertex_match
+  // Per predicted character: rest_vertex_match, empty when its vertices are in the ground truth's order.
+  std::map<std::string, std::vector<int32_t>> matches;
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   for (size_t k = 0; k < clips.size(); ++k) {
     const EvalClip& clip = clips[k];
@@ -1039,15 +1040,18 @@ EvaluationResult evaluate_predictions(const std::vector<std::string>& shards, co
                 " (its vertices, in any order), found other positions");
       bool identity = true;
       for (size_t i = 0; i < rows.size(); ++i) identity = identity && rows[i] == int32_t(i);
-      if (!identity)
+      if (identity) {
+        rows.clear();
+      } else {
         std::fprintf(stderr,
                      "eval: %s: /characters/%s: vertices in another order than %s's, matched by rest position\n",
                      predictions.c_str(), p.character.c_str(), clip.info.character.c_str());
+      }
       match = matches.emplace(p.character, std::move(rows)).first;
     }
     const MatrixX3f gt_all = reader.read_vertices(clip.info.name, 0, static_cast<int>(T));
     MatrixX3f pred_all = predicted.read_vertices(p.name, 0, static_cast<int>(T));
-    {
+    if (!match->second.empty()) {
       const MatrixX3f stored = pred_all;
       for (int64_t t = 0; t < T; ++t)
         for (int64_t i = 0; i < N; ++i) pred_all.row(t * N + i) = stored.row(t * N + match->second[size_t(i)]);

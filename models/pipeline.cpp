@@ -193,13 +193,18 @@ ModelBundle load_model_bundle(const std::string& dir) {
             variant_name(bundle.skinning->options.variant));
   bundle.infos.push_back(info);
 
+  // A local apparel module (apparel.ckpt or apparel_own_weights.ckpt): its joints, frozen normalisers.
+  const auto load_local_apparel = [&](const std::string& file, CheckpointInfo& file_info) {
+    ApparelDynamicsNet net =
+        load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(file, ModuleKind::kApparel, file_info);
+    check_joints_option(file, net->options.num_joints, J);
+    AMT_CHECK(net->normalizers_frozen(), file, ": input_normalizer: expected frozen statistics ",
+              "(a checkpoint written after the normaliser warm-up), found none");
+    return net;
+  };
   path = require(kApparelCheckpoint, ModuleKind::kApparel);
   if (is_local_apparel_options(read_checkpoint_info(path, ModuleKind::kApparel).options_json)) {
-    bundle.apparel_dynamics =
-        load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(path, ModuleKind::kApparel, info);
-    check_joints_option(path, bundle.apparel_dynamics->options.num_joints, J);
-    AMT_CHECK(bundle.apparel_dynamics->normalizers_frozen(), path, ": input_normalizer: expected frozen statistics ",
-              "(a checkpoint written after the normaliser warm-up), found none");
+    bundle.apparel_dynamics = load_local_apparel(path, info);
   } else {
     bundle.apparel =
         load_frozen_network<ApparelDisplacementNet, ApparelDisplacementOptions>(path, ModuleKind::kApparel, info);
@@ -228,17 +233,13 @@ ModelBundle load_model_bundle(const std::string& dir) {
     AMT_CHECK(bundle.local_apparel(), own, ": expected it beside a local apparel module (", kApparelCheckpoint,
               " is the global form)");
     CheckpointInfo own_info;
-    bundle.apparel_dynamics_own_weights =
-        load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(own, ModuleKind::kApparel, own_info);
+    bundle.apparel_dynamics_own_weights = load_local_apparel(own, own_info);
     check_skeleton(own, own_info);
     const ApparelDynamicsOptions &a = bundle.apparel_dynamics->options,
                                  &b = bundle.apparel_dynamics_own_weights->options;
     AMT_CHECK(b.handle_spacing == a.handle_spacing && b.anchor == a.anchor, own, ": options: expected the handles (",
               a.handle_spacing, " m) and anchor (", a.anchor, ") of ", kApparelCheckpoint, ", found ", b.handle_spacing,
               " m and ", b.anchor);
-    AMT_CHECK(bundle.apparel_dynamics_own_weights->normalizers_frozen(), own,
-              ": input_normalizer: expected frozen statistics (a checkpoint written after the normaliser warm-up), "
-              "found none");
   }
   optional_variant(kSkinningNoGeodesicCheckpoint, SkinningVariant::kNoGeodesic, bundle.skinning_no_geodesic);
   optional_variant(kSkinningSortedCheckpoint, SkinningVariant::kSortByGeodesic, bundle.skinning_sorted);

@@ -321,7 +321,8 @@ bool anchor_truth_character(const std::string& name, double share, uint64_t seed
   fnv1a(hash, &seed, sizeof(seed));
   fnv1a(hash, name.data(), name.size());
   // FNV-1a leaves its high bits nearly alike for names that differ in the last characters: mix them (the
-  // finaliser of MurmurHash3's 64-bit hash) before the top 53 bits become a uniform number in [0, 1).
+  // finaliser of MurmurHash3's 64-bit hash) before the top 53 bits become a uniform number in [0, 1). Not
+  // splitmix64 above: the shipped apparel_own_weights.ckpt was trained on the characters this finaliser picks.
   hash = (hash ^ (hash >> 33)) * 0xFF51AFD7ED558CCDull;
   hash = (hash ^ (hash >> 33)) * 0xC4CEB9FE1A85EC53ull;
   hash ^= hash >> 33;

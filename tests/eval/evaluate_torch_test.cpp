@@ -429,8 +429,8 @@ TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
   EvaluateOptions options;
   options.progress = false;
   options.penetration = false;
-  const EvaluationResult same = evaluate_predictions(
-      {dir + "/truth.h5"}, test::copy_as_predictions(dir + "/truth.h5", dir + "/truth_predicted.h5"), options);
+  const std::string truth_as_predictions = test::copy_as_predictions(dir + "/truth.h5", dir + "/truth_predicted.h5");
+  const EvaluationResult same = evaluate_predictions({dir + "/truth.h5"}, truth_as_predictions, options);
   const MethodScores* exact = same.find("predictions", "file", kHeldOutCharacters);
   ASSERT_NE(exact, nullptr);
   EXPECT_EQ(exact->separation.tearing, 0.0);
@@ -452,8 +452,7 @@ TEST(Evaluate, FallingApartMeasuresOfAHandMadePrediction) {
   EXPECT_EQ(r->separation.tearing_ground_truth_deformed, 0.0);
   // Roles swapped: a ground truth that stretches those edges by 1.6 in frame 1 against a prediction at rest
   // length: 1 / 1.6 is off by 37.5 %, not torn; the ground truth's own deformation is counted.
-  const EvaluationResult swapped = evaluate_predictions(
-      {dir + "/predicted.h5"}, test::copy_as_predictions(dir + "/truth.h5", dir + "/truth_predicted.h5"), options);
+  const EvaluationResult swapped = evaluate_predictions({dir + "/predicted.h5"}, truth_as_predictions, options);
   const MethodScores* w = swapped.find("predictions", "file", kHeldOutCharacters);
   ASSERT_NE(w, nullptr);
   EXPECT_EQ(w->separation.tearing, 0.0);

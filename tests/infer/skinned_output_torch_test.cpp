@@ -24,6 +24,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// `amt args...` with `dir` as the current folder.
+test::CommandResult amt_in(const fs::path& dir, const std::vector<std::string>& args) {
+  return test::run_command("cd " + test::shell_command(dir.string(), {}) + " && " +
+                           test::shell_command(AMT_BINARY, args));
+}
+
 struct Comparison {
   double apparel_p95 = 0, apparel_max = 0, body_p95 = 0, moved = 0;
   double size_ratio = 0;
@@ -70,10 +76,8 @@ Comparison skinned_against_cache(const fs::path& dir, std::vector<std::string> a
   std::vector<std::string> skinned = args, cache = args;
   for (const char* a : {"--out", "skinned.glb"}) skinned.emplace_back(a);
   for (const char* a : {"--out", "cache.glb", "--vertex-cache"}) cache.emplace_back(a);
-  const test::CommandResult a =
-      test::run_command("cd '" + dir.string() + "' && " + test::shell_command(AMT_BINARY, skinned));
-  const test::CommandResult b =
-      test::run_command("cd '" + dir.string() + "' && " + test::shell_command(AMT_BINARY, cache));
+  const test::CommandResult a = amt_in(dir, skinned);
+  const test::CommandResult b = amt_in(dir, cache);
   EXPECT_EQ(a.status, 0) << a.err;
   EXPECT_EQ(b.status, 0) << b.err;
   if (a.status != 0 || b.status != 0) return c;
@@ -163,10 +167,8 @@ TEST(SkinnedOutput, AVrmOutputKeepsTheAvatarsMapAndSpringsAndPlaysItsFrames) {
   std::vector<std::string> vrm = args, cache = args;
   for (const char* a : {"--out", "godette.vrm"}) vrm.emplace_back(a);
   for (const char* a : {"--out", "cache.glb", "--vertex-cache"}) cache.emplace_back(a);
-  const test::CommandResult a =
-      test::run_command("cd '" + dir.string() + "' && " + test::shell_command(AMT_BINARY, vrm));
-  const test::CommandResult b =
-      test::run_command("cd '" + dir.string() + "' && " + test::shell_command(AMT_BINARY, cache));
+  const test::CommandResult a = amt_in(dir, vrm);
+  const test::CommandResult b = amt_in(dir, cache);
   ASSERT_EQ(a.status, 0) << a.err;
   ASSERT_EQ(b.status, 0) << b.err;
   EXPECT_NE(a.out.find("its VRM extensions kept"), std::string::npos) << a.out;

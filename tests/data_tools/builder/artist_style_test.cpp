@@ -363,6 +363,23 @@ TEST(SeparationMeasures, TearingSeamGapAndApparelElsByHand) {
   quiet.end_clip();
   EXPECT_EQ(quiet.result().tearing, 0.0);
   EXPECT_NEAR(quiet.result().seam_gap_p95_cm, 3.0, 1e-5);
+  EXPECT_TRUE(std::isnan(quiet.result().rest_tearing));  // no rest mesh given
+
+  // Against rest lengths: a ground truth with vertex 0 at x = -0.15 (edge 0-1 2.5 times its rest length, edge 0-2
+  // 1.80 times) and a prediction at rest. Edge 0-1 is torn (0.1 / 0.25: off by 60 %) where the ground truth deforms;
+  // edge 0-2 is not (0.1 / 0.180: off by 44.5 %); the prediction's own edges are all at rest.
+  SeparationAccumulator against_rest(pairs, edges, rest);
+  against_rest.begin_clip();
+  MatrixX3f deformed = rest;
+  deformed(0, 0) = -0.15f;
+  against_rest.add_frame(rest, deformed);
+  against_rest.end_clip();
+  const SeparationScores r = against_rest.result();
+  EXPECT_NEAR(r.tearing, 1.0 / 6.0, 1e-12);
+  EXPECT_NEAR(r.tearing_ground_truth_deformed, 1.0 / 6.0, 1e-12);
+  EXPECT_NEAR(r.ground_truth_rest_tearing, 2.0 / 6.0, 1e-12);
+  EXPECT_EQ(r.rest_tearing, 0.0);
+
   // No pairs, no apparel edges: NaN, not zero.
   SeparationAccumulator none(MatrixX2i(0, 2), MatrixX2i(0, 2));
   none.begin_clip();
