@@ -190,6 +190,9 @@ void add_train_command(CLI::App& app) {
                    "Local apparel: move handles about this far apart (metres) that the vertices follow, instead of "
                    "every vertex (0: every vertex); for a fresh run or one started with --init")
       ->check(CLI::Range(0.0, 1.0));
+  train->add_flag("--apparel-response", o.apparel_response,
+                  "Local apparel: read how lively each character's own physics is (its rig's response, when its "
+                  "dataset stores one); for a fresh run or one started with --init (widened with zero weights)");
   train
       ->add_option("--free-run", o.free_run,
                    "Local apparel: at most this many frames rolled out without gradient before the unroll "

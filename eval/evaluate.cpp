@@ -199,6 +199,9 @@ struct CharacterCache {
   // The rig's apparel bones as the handles of the binds on the ground-truth mask (EvaluateOptions::rig_handles);
   // null otherwise.
   std::shared_ptr<const ApparelBones> bones;
+  // The rig's apparel bones whose physics response (ApparelBones::response) the apparel module reads, whichever
+  // handles it moves; null when the dataset has none.
+  std::shared_ptr<const ApparelBones> physics;
   MatrixX2i pairs;      // coincident_pairs of the rest mesh: the seam gap's pairs
   MatrixX2i apparel_E;  // apparel_edges of E: tearing and apparel ELS
   MeshConstruction construction;
@@ -258,9 +261,11 @@ std::unique_ptr<CharacterCache> load_character(const DatasetReader& reader, cons
   auto c = std::make_unique<CharacterCache>();
   if (subset == kHeldOutArtistStyle) c->remake = artist_style_character(reader.read_character(name), artist_style);
   const CharacterData data = c->remake ? c->remake->character : reader.read_character(name);
-  if (rig_handles)
-    if (std::optional<ApparelBones> bones = rig_apparel_bones(data))
-      c->bones = std::make_shared<const ApparelBones>(std::move(*bones));
+  if (std::optional<ApparelBones> bones = rig_apparel_bones(data)) {
+    auto shared = std::make_shared<const ApparelBones>(std::move(*bones));
+    if (rig_handles) c->bones = shared;
+    if (shared->response.rows() > 0) c->physics = shared;
+  }
   c->name = name;
   c->subset = subset;
   const int64_t N = data.mesh.num_vertices(), J = data.skeleton.num_joints();
@@ -417,11 +422,13 @@ BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
     o.apparel_mask = c.gt_mask;
     o.weights = c.gt_weights;
     o.apparel_bones = c.bones;
+    o.physics_bones = c.physics;
   } else if (bind == "predicted") {
     o.all_vertex_weights = true;
   } else {
     o.apparel_mask = c.gt_mask;
     o.apparel_bones = c.bones;
+    o.physics_bones = c.physics;
     if (bind == "gt_mask_no_geodesic") o.skinning_variant = SkinningVariant::kNoGeodesic;
     if (bind == "gt_mask_sorted") o.skinning_variant = SkinningVariant::kSortByGeodesic;
   }

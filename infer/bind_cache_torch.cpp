@@ -40,6 +40,7 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"apparel_contact_rest", &BoundCharacter::apparel_contact_rest},
           {"apparel_contact_weights", &BoundCharacter::apparel_contact_weights},
           {"apparel_ancestors", &BoundCharacter::apparel_ancestors},
+          {"apparel_response", &BoundCharacter::apparel_response},
           {"vertex_weights", &BoundCharacter::vertex_weights},
           {"graph_edges", &BoundCharacter::graph_edges},
           {"topology_counts", &BoundCharacter::topology_counts},
@@ -70,7 +71,8 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash) {
 }
 
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
-                     const ModelBundle& bundle, const ApparelBones* bones, const MatrixXfR& weights) {
+                     const ModelBundle& bundle, const ApparelBones* bones, const MatrixXfR& weights,
+                     const ApparelBones* physics) {
   uint64_t h = kFnvOffset;
   const int64_t sizes[4] = {mesh.V.rows(), mesh.F.rows(), joints.rows(), int64_t(mask_override.size())};
   h = fnv1a64(sizes, sizeof(sizes), h);
@@ -86,6 +88,14 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
     h = fnv1a64(bones->parents.data(), bones->parents.size() * sizeof(int32_t), h);
     h = fnv1a64(bones->indices.data(), size_t(bones->indices.size()) * sizeof(int32_t), h);
     h = fnv1a64(bones->weights.data(), size_t(bones->weights.size()) * sizeof(float), h);
+    h = fnv1a64(bones->response.data(), size_t(bones->response.size()) * sizeof(float), h);
+  }
+  if (physics && physics->response.rows() > 0) {
+    const int64_t counts[3] = {physics->response.rows(), physics->indices.rows(), physics->indices.cols()};
+    h = fnv1a64(counts, sizeof(counts), h);
+    h = fnv1a64(physics->indices.data(), size_t(physics->indices.size()) * sizeof(int32_t), h);
+    h = fnv1a64(physics->weights.data(), size_t(physics->weights.size()) * sizeof(float), h);
+    h = fnv1a64(physics->response.data(), size_t(physics->response.size()) * sizeof(float), h);
   }
   if (weights.rows() > 0) {
     const int64_t shape[2] = {weights.rows(), weights.cols()};
@@ -197,12 +207,13 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
 
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
                        const std::vector<uint8_t>& mask_override, const std::string& cache_path,
-                       std::shared_ptr<const ApparelBones> bones, const MatrixXfR& weights) {
+                       std::shared_ptr<const ApparelBones> bones, const MatrixXfR& weights,
+                       std::shared_ptr<const ApparelBones> physics) {
   const auto start = std::chrono::steady_clock::now();
   BindResult result;
   std::string key;
   if (!cache_path.empty()) {
-    key = bind_key(mesh, joints, mask_override, bundle, bones.get(), weights);
+    key = bind_key(mesh, joints, mask_override, bundle, bones.get(), weights, physics.get());
     result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
     if (result.reason.rfind("damaged", 0) == 0) {
       std::cerr << "amt: " << cache_path << ": bind cache: " << result.reason << ", recomputing it\n";
@@ -216,6 +227,7 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
     const at::Tensor Jt = at::from_blob(const_cast<float*>(joints.data()), {joints.rows(), 3}, at::kFloat).clone();
     BindOptions options;
     options.apparel_bones = std::move(bones);
+    options.physics_bones = std::move(physics);
     if (!mask_override.empty()) {
       AMT_CHECK(int64_t(mask_override.size()) == mesh.V.rows(), "--apparel-mask: expected ", mesh.V.rows(),
                 " values, found ", mask_override.size());

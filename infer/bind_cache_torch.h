@@ -20,8 +20,9 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 6;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
-                                            // 6: the linked topology and the handles
+inline constexpr int64_t kBindVersion = 7;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
+                                            // 6: the linked topology and the handles; 7: the apparel
+                                            // bones' physics response
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;
@@ -31,10 +32,11 @@ uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
 /// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
 /// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded), and the apparel bones given as handles (null:
 /// none; their heads, parents and vertex weights), and the skin weights given in place of the predicted ones (empty:
-/// none). Throws amt::Error when a checkpoint file cannot be read.
+/// none), and the bones whose physics response the module reads (`physics`: their vertex weights and response).
+/// Throws amt::Error when a checkpoint file cannot be read.
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
                      const ModelBundle& bundle, const ApparelBones* bones = nullptr,
-                     const MatrixXfR& weights = MatrixXfR());
+                     const MatrixXfR& weights = MatrixXfR(), const ApparelBones* physics = nullptr);
 
 /// Writes a bound character and its key to `path` (through "<path>.amt-tmp"). Throws amt::Error when the
 /// file cannot be written.
@@ -57,11 +59,13 @@ struct BindResult {
 
 /// Loads the bind from `cache_path` when its key matches, else binds (bind_character with the mask
 /// override, if any, `bones` as the apparel module's handles: BindOptions::apparel_bones, and `weights` in place of the
-/// skinning predictor's: BindOptions::weights) and writes the cache. An empty `cache_path` disables the cache.
+/// skinning predictor's: BindOptions::weights, `physics` as the bones whose response the apparel module reads:
+/// BindOptions::physics_bones) and writes the cache. An empty `cache_path` disables the cache.
 ///   mesh (#V, #F), joints (#J by 3 on the bundle's skeleton), mask_override (empty or #V entries 0/1),
 ///   weights (empty, or #V by #J rows summing to 1: the character's own skin, canonical_file_weights)
 BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const MatrixX3f& joints,
                        const std::vector<uint8_t>& mask_override, const std::string& cache_path,
-                       std::shared_ptr<const ApparelBones> bones = nullptr, const MatrixXfR& weights = MatrixXfR());
+                       std::shared_ptr<const ApparelBones> bones = nullptr, const MatrixXfR& weights = MatrixXfR(),
+                       std::shared_ptr<const ApparelBones> physics = nullptr);
 
 }  // namespace amt

@@ -14,6 +14,7 @@
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/pmx_dataset.h"
 #include "data_tools/builder/pmx_physics.h"
+#include "data_tools/builder/rig_response.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/gltf_import.h"
 #include "data_tools/formats/input_file.h"
@@ -96,11 +97,29 @@ std::vector<uint8_t> chain_apparel_mask(const Skeleton& file, const CanonicalRes
 // weights, as the character's apparel bones; null when none is flagged.
 std::shared_ptr<const ApparelBones> file_apparel_bones(const std::vector<std::string>& names,
                                                        const std::vector<int32_t>& parents, const MatrixX3f& heads,
-                                                       const SparseWeights& w, const std::vector<uint8_t>& keep) {
+                                                       const SparseWeights& w, const std::vector<uint8_t>& keep,
+                                                       const MatrixXfR& response = MatrixXfR()) {
   if (std::find(keep.begin(), keep.end(), uint8_t(1)) == keep.end()) return nullptr;
   const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> indices = w.indices;
   const MatrixXfR weights = w.weights;
-  return std::make_shared<const ApparelBones>(select_apparel_bones(names, heads, parents, indices, weights, keep));
+  return std::make_shared<const ApparelBones>(
+      select_apparel_bones(names, heads, parents, indices, weights, keep, response));
+}
+
+// The physics response of a PMX model's bones (rig_response), measured as `amt dataset build --pmx` simulates the
+// model: its own rig in its own units under MMD's world; empty when the rig cannot be simulated (the apparel module
+// then reads its physics as unknown).
+MatrixXfR pmx_bone_response(const std::string& path) {
+  try {
+    const PmxCharacter c = pmx_physics_character(read_pmx(path));
+    PhysicsSettings settings = pmx_physics_settings();
+    settings.fixed_step = 1.0f / 240.0f;  // DatasetBuildOptions' physics step and iterations
+    settings.solver_iterations = 20;
+    settings.max_substeps = std::max(settings.max_substeps, 8);
+    return rig_response(c.physics, settings, c.scale);
+  } catch (const Error&) {
+    return MatrixXfR();
+  }
 }
 
 }  // namespace
@@ -215,8 +234,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
           parents[b] = model.bones[b].parent;
           heads.row(b) = model.bones[b].position.transpose();
         }
-        c.rig_bones =
-            file_apparel_bones(names, parents, heads, pmx_skin_weights(model), pmx_physics_driven_bones(model));
+        c.rig_bones = file_apparel_bones(names, parents, heads, pmx_skin_weights(model),
+                                         pmx_physics_driven_bones(model), pmx_bone_response(path));
       }
       c.file_skeleton = pmx_skeleton(model);  // names made unique: PMX allows repeats
       if (spec.joints.empty()) c.file_weights = pmx_skin_weights(model);
@@ -248,6 +267,16 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.turned = true;
     if (spring_rig) turn_spring_rig(*spring_rig);
   }
+  // How lively a VRM avatar's springs are (the apparel module's physics inputs), on the skeleton they run on; a rig
+  // that cannot be simulated leaves them unknown (--apparel spring-bones names its fault).
+  MatrixXfR spring_bone_response;
+  if (spring_rig) {
+    try {
+      spring_bone_response = spring_response(c.file_skeleton, *spring_rig);
+    } catch (const Error&) {
+      spring_bone_response = MatrixXfR();
+    }
+  }
   if (gltf_weights.num_vertices() == c.mesh.num_vertices() && spec.joints.empty()) {
     c.file_weights = gltf_weights;
     if (spring_rig) c.springs = std::move(spring_rig);
@@ -261,7 +290,8 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     if (count > 0) {
       MatrixX3f heads(c.file_skeleton.num_joints(), 3);
       for (int j = 0; j < c.file_skeleton.num_joints(); ++j) heads.row(j) = c.file_skeleton.rest_joints.row(j);
-      c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain);
+      c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain,
+                                       spring_bone_response);
       c.rig_apparel_mask = std::move(rig);
       c.rig_apparel = springs.empty()
                           ? "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +

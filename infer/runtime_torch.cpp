@@ -127,6 +127,24 @@ void RuntimeSession::advance(const at::Tensor& joint_transforms) {
 
 namespace {
 
+// What the apparel module reads as the character's own physics (AnimateSummary::physics_source): the rig's bones'
+// response averaged over the apparel, or unknown.
+std::string physics_source(const ApparelBones* bones, const BoundCharacter& bound) {
+  if (!bound.apparel_response.defined() || !bones || bones->response.rows() == 0)
+    return "unknown (no rig whose physics amt can simulate: a PMX model's rigid bodies, a VRM avatar's spring bones, "
+           "a dataset's rig); the module's physics inputs are zeros";
+  int simulated = 0;
+  for (Eigen::Index b = 0; b < bones->response.rows(); ++b) simulated += bones->response(b, 0) > 0;
+  const at::Tensor mean = bound.apparel_response.mean(0);
+  char text[200];
+  std::snprintf(text, sizeof(text),
+                "the rig's response to a probe sway (%d of its %d apparel bones simulated; over the apparel: %.0f %% "
+                "of the weight on them, swing %.2f during the sway and %.2f after it)",
+                simulated, bones->num_bones(), 100.0 * mean[0].item<double>(), mean[1].item<double>(),
+                mean[2].item<double>());
+  return text;
+}
+
 // The first row of `P` (n, 3) that is non-finite or farther than `bound` from `root`, or -1.
 int64_t first_exploded(const float* P, int64_t n, const Eigen::Vector3f& root, float bound) {
   for (int64_t i = 0; i < n; ++i) {
@@ -773,12 +791,14 @@ AnimateSummary animate(const AnimateOptions& o) {
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
   const BindResult bind = bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override,
-                                      s.bind_path, bones, own_weights);
+                                      s.bind_path, bones, own_weights, character.rig_bones);
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
   s.hung = bind.bound.hung;
   s.topology = bind.bound.topology();
   s.handles = bind.bound.handle_rows.defined() ? bind.bound.handle_rows.size(0) : 0;
+  if (bundle.local_apparel() && bundle.apparel_dynamics_for(bind.bound.given_weights)->options.response)
+    s.physics_source = physics_source(character.rig_bones.get(), bind.bound);
   if (o.verbose) {
     std::cerr << "animate: bind " << (bind.cache_hit ? "loaded from " + s.bind_path : "computed (" + bind.reason + ")")
               << " in " << bind.seconds << " s\n";
@@ -947,6 +967,7 @@ std::string describe(const AnimateSummary& s) {
     }
   }
   if (!s.weights_source.empty()) out << "skinning weights: " << s.weights_source << "\n";
+  if (!s.physics_source.empty()) out << "apparel physics: " << s.physics_source << "\n";
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
     std::snprintf(line, sizeof(line),

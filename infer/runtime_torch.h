@@ -163,6 +163,9 @@ struct AnimateSummary {
   /// Where the skinning weights came from: "the skinning predictor" or "the character's own skin ..."
   /// (AnimateOptions::skin_weights).
   std::string weights_source;
+  /// What the apparel module read as the character's own physics (its response inputs, ApparelGraph::response):
+  /// "the rig's ..." or "unknown ..."; empty when the module has no such inputs.
+  std::string physics_source;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.

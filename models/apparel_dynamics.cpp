@@ -10,12 +10,16 @@
 #include <queue>
 #include <string>
 
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/geodesic.h"
 #include "models/apparel_displacement.h"
+#include "models/module_options.h"
 #include "models/pointnet.h"
 
 namespace amt {
+
+static_assert(kApparelResponseChannels == kRigResponseChannels, "one response layout for rigs and the module");
 namespace {
 
 // R^T v and R v for rotations R (..., 3, 3) and vectors v (..., 3), elementwise (a batched matmul
@@ -75,6 +79,9 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
                 who, ": the contact inputs need graph.contact_rest (", N, ", 3) and graph.contact_weights (", N, ", ", J,
                 ") (apparel_graph with the body weights)");
   }
+  TORCH_CHECK(!g.response.defined() ||
+                  (g.response.dim() == 2 && g.response.size(0) == N && g.response.size(1) == kApparelResponseChannels),
+              who, ": graph.response must be (", N, ", ", kApparelResponseChannels, ") or undefined");
 }
 
 // The inference path of features_from in one pass (no autograd): the same channels, computed per vertex
@@ -85,8 +92,8 @@ void check_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
 // Returns the channels normalised by (mean, scale) (the input normaliser's), and the raw first six
 // (d_{t-1}, d_{t-1} - d_{t-2}) in `raw` (B, N_a, 6).
 at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S, const ApparelGraph& g,
-                          bool contact, int64_t channels, const at::Tensor& mean, const at::Tensor& scale,
-                          at::Tensor& raw) {
+                          bool contact, bool response, int64_t channels, const at::Tensor& mean,
+                          const at::Tensor& scale, at::Tensor& raw) {
   constexpr int64_t kMaxChannels = 64;
   TORCH_CHECK(channels <= kMaxChannels, "fused_features: at most ", kMaxChannels, " channels");
   const int64_t B = h.size(0), N = h.size(2), J = T.size(2);
@@ -109,6 +116,8 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
   const float* rest = g.rest_features.data_ptr<float>();
   const int64_t* fj = g.frame_joints.data_ptr<int64_t>();
   const float* mp_contact = contact ? M.data_ptr<float>() : nullptr;
+  const float* physics = response && g.response.defined() ? g.response.data_ptr<float>() : nullptr;
+  const int64_t physics_at = channels - kApparelResponseChannels;
   float* out = X.data_ptr<float>();
   // Per joint: the axial vectors of R_2^T R_3 and R_1^T R_2, and gravity in the frame at t, (B, J, 9).
   std::vector<float> joint(static_cast<size_t>(B * J * 9));
@@ -178,6 +187,10 @@ at::Tensor fused_features(const at::Tensor& h, const at::Tensor& T, const at::Te
         to(2, reach, o + 37);
         to(2, step, o + 40);
       }
+      if (response) {
+        for (int64_t c = 0; c < kApparelResponseChannels; ++c)
+          o[physics_at + c] = physics ? physics[i * kApparelResponseChannels + c] : 0.0f;
+      }
       float* x = out + bi * channels;
       for (int64_t c = 0; c < channels; ++c) x[c] = (o[c] - mp[c]) / sp[c];  // RunningNormalizer::normalize
       std::copy(o, o + 6, rp + bi * 6);
@@ -192,7 +205,8 @@ bool fused_inputs(const at::Tensor& h, const at::Tensor& T, const at::Tensor& S,
     return !t.defined() || (t.scalar_type() == type && t.is_contiguous() && t.device().is_cpu());
   };
   return plain(h, at::kFloat) && plain(T, at::kFloat) && plain(S, at::kFloat) && plain(g.rest_features, at::kFloat) &&
-         plain(g.frame_joints, at::kLong) && plain(g.contact_rest, at::kFloat) && plain(g.contact_weights, at::kFloat);
+         plain(g.frame_joints, at::kLong) && plain(g.contact_rest, at::kFloat) &&
+         plain(g.contact_weights, at::kFloat) && plain(g.response, at::kFloat);
 }
 
 // S_t + R_t d_t per vertex (the inference path of step's last line): S (B, 4, N_a, 3), d (B, N_a, 3).
@@ -547,6 +561,11 @@ at::Tensor ApparelDynamicsNetImpl::features_from(const at::Tensor& h, const at::
     channels.push_back(to_frame(R1, P_next - h.select(1, 2)));
     channels.push_back(to_frame(R1, P_next - P_last));
   }
+  if (options.response) {
+    channels.push_back(g.response.defined()
+                           ? g.response.to(h.scalar_type()).unsqueeze(0).expand({B, N, kApparelResponseChannels})
+                           : at::zeros({B, N, kApparelResponseChannels}, h.options()));
+  }
   return at::cat(channels, 2);
 }
 
@@ -563,7 +582,8 @@ at::Tensor ApparelDynamicsNetImpl::step(const at::Tensor& history, const at::Ten
   const bool fused = !at::GradMode::is_enabled() && fused_inputs(h, T, S, g);
   at::Tensor R, x, D;  // D: the raw first six channels
   if (fused) {
-    x = fused_features(h, T, S, g, options.contact, channels(), input_normalizer->mean, input_normalizer->scale, D);
+    x = fused_features(h, T, S, g, options.contact, options.response, channels(), input_normalizer->mean,
+                       input_normalizer->scale, D);
   } else {
     R = vertex_rotations(T, g.frame_joints);
     const at::Tensor H = features_from(h, T, S, g, R);
@@ -620,6 +640,44 @@ void ApparelDynamicsNetImpl::observe(const at::Tensor& history, const at::Tensor
 void ApparelDynamicsNetImpl::freeze_normalizers() {
   input_normalizer->freeze();
   target_normalizer->freeze();
+}
+
+void ApparelDynamicsNetImpl::widen_from(ApparelDynamicsNetImpl& source) {
+  ApparelDynamicsOptions expected = source.options;
+  expected.response = true;
+  AMT_CHECK(!source.options.response && options.response && options_to_json(expected) == options_to_json(options),
+            "apparel module: widen: expected a module without physics inputs and one alike with them");
+  torch::NoGradGuard no_grad;
+  const int64_t C = source.channels(), extra = channels() - C;
+  const auto params = named_parameters(), from = source.named_parameters();
+  for (const auto& item : params) {
+    const at::Tensor& old = from[item.key()];
+    at::Tensor target = item.value();
+    if (old.sizes() == target.sizes()) {
+      target.copy_(old);
+      continue;
+    }
+    // The first block's edge layer (C_out, 2 C) = [W1 | W2] on [h_i, h_j - h_i]: new columns after each half.
+    AMT_CHECK(item.key() == "edge_conv0.edge.weight" && old.dim() == 2 && old.size(1) == 2 * C,
+              "apparel module: widen: unexpected shape of ", item.key());
+    target.zero_();
+    target.narrow(1, 0, C).copy_(old.narrow(1, 0, C));
+    target.narrow(1, C + extra, C).copy_(old.narrow(1, C, C));
+  }
+  const auto buffers = named_buffers(), old_buffers = source.named_buffers();
+  for (const auto& item : buffers) {
+    const at::Tensor& old = old_buffers[item.key()];
+    at::Tensor target = item.value();
+    if (old.sizes() == target.sizes()) {
+      target.copy_(old);
+      continue;
+    }
+    AMT_CHECK(old.dim() == 1 && target.dim() == 1 && target.size(0) == C + extra && old.size(0) == C,
+              "apparel module: widen: unexpected shape of ", item.key());
+    const bool is_scale = item.key().size() >= 5 && item.key().compare(item.key().size() - 5, 5, "scale") == 0;
+    target.fill_(is_scale ? 1.0 : 0.0);
+    target.narrow(0, 0, C).copy_(old);
+  }
 }
 
 bool ApparelDynamicsNetImpl::normalizers_frozen() const {

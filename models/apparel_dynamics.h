@@ -52,7 +52,15 @@ struct ApparelGraph {
   /// where its piece attaches (chain_ancestors), extra neighbours that let a few blocks see the chain
   /// above a vertex (ApparelDynamicsOptions::reach_levels).
   at::Tensor ancestors;
+  /// (N_a, kApparelResponseChannels) float: how the character's own physics moves each vertex
+  /// (vertex_response over its rig's bones: the share of its weight on simulated bones, its swing away
+  /// from rigid skinning while the body sways and after it stops). Undefined: unknown (no rig with
+  /// physics), read as zeros. Input of the module only with ApparelDynamicsOptions::response.
+  at::Tensor response;
 };
+
+/// Channels of ApparelGraph::response (kRigResponseChannels of data_tools/geometry/apparel_topology.h).
+inline constexpr int64_t kApparelResponseChannels = 3;
 
 /// Columns of ApparelGraph::ancestors: ancestors up to 2^5 = 32 hops.
 inline constexpr int64_t kApparelReachLevels = 6;
@@ -199,6 +207,10 @@ struct ApparelDynamicsOptions {
   /// network runs on hundreds of handles instead of thousands of vertices. Checkpoints written before this
   /// field existed have 0.
   double handle_spacing = 0.0;
+  /// Physics inputs: ApparelGraph::response, how lively the character's own apparel physics is, when it
+  /// has a rig (a PMX model's rigid bodies, a dataset's rig); zeros when it has none. Checkpoints written
+  /// before this field existed have none (false).
+  bool response = false;
 };
 
 /// f_d in local coordinates: apparel history, the motion and the anchors of frames t-3..t -> A^(t).
@@ -209,7 +221,9 @@ class ApparelDynamicsNetImpl : public torch::nn::Module {
   /// Per-vertex input channels without and with the contact inputs (channels(): the normaliser's width).
   static constexpr int64_t kChannels = 30 + kApparelRestChannels;
   static constexpr int64_t kContactChannels = 6;
-  int64_t channels() const { return kChannels + (options.contact ? kContactChannels : 0); }
+  int64_t channels() const {
+    return kChannels + (options.contact ? kContactChannels : 0) + (options.response ? kApparelResponseChannels : 0);
+  }
 
   /// The raw (unnormalised) input channels H (B, N_a, kChannels) for the frame t:
   ///   history (B, 3, N_a, 3) A^(t-3), A^(t-2), A^(t-1), metres;
@@ -224,7 +238,8 @@ class ApparelDynamicsNetImpl : public torch::nn::Module {
   ///   27-29 gravity's direction (0, -1, 0) in the frame at t;
   ///   30-36 ApparelGraph::rest_features;
   ///   with options.contact, 37-39 P_t - A_{t-1} and 40-42 P_t - P_{t-1}, P the vertex's contact point
-  ///   (its nearest body vertex, skinned: ApparelGraph::contact_rest, contact_weights).
+  ///   (its nearest body vertex, skinned: ApparelGraph::contact_rest, contact_weights);
+  ///   with options.response, the last 3: ApparelGraph::response (zeros when undefined).
   at::Tensor features(const at::Tensor& history, const at::Tensor& transforms, const at::Tensor& anchors,
                       const ApparelGraph& graph) const;
 
@@ -252,6 +267,12 @@ class ApparelDynamicsNetImpl : public torch::nn::Module {
 
   /// The rule's d_t (no network): d_{t-1} + inertia (d_{t-1} - d_{t-2}).
   at::Tensor rule_detail(const at::Tensor& d_last, const at::Tensor& d_before) const;
+
+  /// Copies a trained module without the physics inputs into this one, which has them (options.response)
+  /// and is otherwise alike: the first block's weights on the new channels start at zero and their
+  /// normaliser at mean 0, scale 1, so that this module computes exactly what `source` does until
+  /// training moves them. Throws amt::Error when the options differ otherwise.
+  void widen_from(ApparelDynamicsNetImpl& source);
 
   ApparelDynamicsOptions options;
   RunningNormalizer input_normalizer{nullptr}, target_normalizer{nullptr};

@@ -73,6 +73,7 @@ ApparelGraph handle_graph(const ApparelGraph& g, const ApparelRig& rig) {
   h.rest_features = g.rest_features.index_select(0, r).contiguous();
   if (g.contact_rest.defined()) h.contact_rest = g.contact_rest.index_select(0, r).contiguous();
   if (g.contact_weights.defined()) h.contact_weights = g.contact_weights.index_select(0, r).contiguous();
+  if (g.response.defined()) h.response = g.response.index_select(0, r).contiguous();
   if (g.ancestors.defined()) {
     // Each ancestor vertex's nearest handle (its first, heaviest-nearest column).
     const at::Tensor nearest = rig.vertex_handles.select(1, 0);

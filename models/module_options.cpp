@@ -67,6 +67,7 @@ void visit(ApparelDynamicsOptions& o, Visitor&& v) {
   v("contact", o.contact);
   v("reach_levels", o.reach_levels);
   v("handle_spacing", o.handle_spacing);
+  v("response", o.response);
 }
 
 template <typename Visitor>

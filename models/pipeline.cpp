@@ -105,8 +105,9 @@ at::Tensor canonical_rows(const at::Tensor& rows, const at::Tensor& apparel_ids,
   return rows.index_select(0, at::tensor(source, at::kLong)).contiguous();
 }
 
-// The local apparel module's per-character inputs from the bound parts and anchor weights.
-void set_apparel_graph(BoundCharacter& c) {
+// The local apparel module's per-character inputs from the bound parts and anchor weights, and the physics
+// response of the apparel bones when they carry one.
+void set_apparel_graph(BoundCharacter& c, const ApparelBones* bones) {
   const ApparelGraph g = apparel_graph(c.V, c.graph_edges, c.apparel_ids, c.body_ids, c.apparel_anchor_weights,
                                        c.joints, c.apparel_neighbors, c.body_weights);
   c.apparel_frame_joints = g.frame_joints;
@@ -114,6 +115,13 @@ void set_apparel_graph(BoundCharacter& c) {
   c.apparel_contact_rest = g.contact_rest;
   c.apparel_contact_weights = g.contact_weights;
   c.apparel_ancestors = g.ancestors;
+  c.apparel_response = at::Tensor();
+  if (bones && bones->response.rows() > 0 && bones->indices.rows() == c.num_vertices()) {
+    const at::Tensor ids = c.apparel_ids.contiguous();
+    const std::vector<int32_t> list(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + ids.numel());
+    const MatrixXfR r = vertex_response(bones->indices, bones->weights, bones->response, list);
+    c.apparel_response = at::from_blob(const_cast<float*>(r.data()), {r.rows(), r.cols()}, at::kFloat).clone();
+  }
 }
 
 }  // namespace
@@ -420,7 +428,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
     c.apparel_anchor_weights = canonical_rows(apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.graph_edges,
                                                                          c.apparel_ids, c.body_ids, c.body_weights),
                                               c.apparel_ids, canon);
-    set_apparel_graph(c);
+    set_apparel_graph(c, options.physics_bones ? options.physics_bones.get() : options.apparel_bones.get());
     return c;
   }
   SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
@@ -433,7 +441,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
   c.apparel_anchor_weights = canonical_rows(apparel_anchor_weights_for(bundle.apparel_anchor(), c.V, c.graph_edges,
                                                                        c.apparel_ids, c.body_ids, c.body_weights),
                                             c.apparel_ids, canon);
-  set_apparel_graph(c);
+  set_apparel_graph(c, options.physics_bones ? options.physics_bones.get() : options.apparel_bones.get());
   if (options.all_vertex_weights) {
     // Apparel rows from f_s on the whole mesh; body rows stay those of the body part, so that "body
     // only" and "body + apparel" skin the body identically (Table 3).

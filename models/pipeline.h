@@ -118,6 +118,10 @@ struct BindOptions {
   /// The character's own apparel bones (N vertex rows) as the apparel module's handles (bone_rig), when the
   /// module moves handles; null: handles picked automatically (apparel_rig at the module's spacing).
   std::shared_ptr<const ApparelBones> apparel_bones;
+  /// The character's own apparel bones whose physics response (ApparelBones::response) feeds the apparel
+  /// module's response inputs (BoundCharacter::apparel_response), whichever handles it moves; null: taken
+  /// from apparel_bones; neither (or no response): unknown.
+  std::shared_ptr<const ApparelBones> physics_bones;
 };
 
 /// What the linked topology of a bound character found (BoundCharacter::topology_counts).
@@ -174,6 +178,9 @@ struct BoundCharacter {
   at::Tensor apparel_contact_rest, apparel_contact_weights;
   /// Its chain ancestors (ApparelGraph::ancestors (N_a, kApparelReachLevels) int64).
   at::Tensor apparel_ancestors;
+  /// Its physics inputs (ApparelGraph::response (N_a, 3) float) from the apparel bones' response
+  /// (BindOptions::apparel_bones with ApparelBones::response); undefined when unknown.
+  at::Tensor apparel_response;
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;
@@ -194,8 +201,8 @@ struct BoundCharacter {
   int64_t num_body() const { return body_ids.size(0); }
   /// The ApparelGraph of the local apparel module (neighbour table, frame joints, rest channels).
   ApparelGraph apparel_graph() const {
-    return {apparel_neighbors,    apparel_frame_joints,    apparel_rest_features,
-            apparel_contact_rest, apparel_contact_weights, apparel_ancestors};
+    return {apparel_neighbors,       apparel_frame_joints, apparel_rest_features, apparel_contact_rest,
+            apparel_contact_weights, apparel_ancestors,    apparel_response};
   }
   /// The handles as a rig (undefined rows for the per-vertex form).
   ApparelRig rig() const { return {handle_rows, handle_vertex_handles, handle_vertex_weights, handle_edges}; }

@@ -301,6 +301,13 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
                                                            t->apparel_ids, t->body_ids, anchor_body_weights);
     t->apparel_graph = apparel_graph(t->V, t->graph_edges, t->apparel_ids, t->body_ids, t->apparel_anchor_weights,
                                      t->joints, t->apparel_neighbors, anchor_body_weights);
+    if (data.rig && data.rig->response.rows() > 0 && t->apparel_ids.size(0) > 0) {
+      // How lively the character's own physics is (the module's response inputs; unknown without it).
+      const at::Tensor ids = t->apparel_ids.contiguous();
+      const std::vector<int32_t> list(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + ids.numel());
+      const MatrixXfR r = vertex_response(data.rig->skin_indices, data.rig->skin_weights, data.rig->response, list);
+      t->apparel_graph.response = float_tensor(r.data(), {r.rows(), r.cols()});
+    }
     t->apparel_node_ids = t->apparel_ids;
     t->apparel_node_edges = t->apparel_edges;
     if (options_.handle_spacing > 0 && t->apparel_ids.size(0) > 0) {

@@ -154,6 +154,9 @@ struct Part {
   std::string checkpoint;
   /// The moving average of the parameters (TrainOptions::ema; empty when off), in parameters() order.
   std::vector<at::Tensor> average;
+  /// Loads an --init checkpoint into module when it differs from a plain load (a module widened by
+  /// TrainOptions::apparel_response); empty: load_checkpoint.
+  std::function<void(const std::string&)> load_init;
 };
 
 // The parameters of `part` and its moving average swapped (no gradient): before validating and saving,
@@ -495,8 +498,17 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
       if (local) {
         ApparelDynamicsOptions options = joint_network_options(info(0), path(0), o.networks.apparel_dynamics, J);
         if (o.handle_spacing >= 0 && o.resume.empty()) options.handle_spacing = o.handle_spacing;
+        const ApparelDynamicsOptions init_options = options;
+        if (o.apparel_response && o.resume.empty()) options.response = true;
         ApparelDynamicsNet net(options);
         task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
+        if (info(0) && options.response && !init_options.response) {
+          task.parts.back().load_init = [net, init_options](const std::string& init) mutable {
+            ApparelDynamicsNet source(init_options);
+            load_checkpoint(init, ModuleKind::kApparel, *source, nullptr);
+            net->widen_from(*source);
+          };
+        }
         task.terms = {"detail", "edge"};
         task.loss = [net, o](const TrainingSample& s, int64_t step, bool validating) mutable {
           return local_apparel_loss(net, s, step, validating, o);
@@ -864,7 +876,13 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     std::vector<at::Tensor> training_parameters;
     if (!resume_paths.empty())
       load_checkpoint(resume_paths[i], part.kind, *part.module, part.optimizer.get(), &training_parameters);
-    if (!init_paths.empty()) load_checkpoint(init_paths[i], part.kind, *part.module, nullptr);
+    if (!init_paths.empty()) {
+      if (part.load_init) {
+        part.load_init(init_paths[i]);
+      } else {
+        load_checkpoint(init_paths[i], part.kind, *part.module, nullptr);
+      }
+    }
     if (o.ema > 0) {
       // The average starts at the network; a resumed run's network is the average, its own parameters
       // the stored training parameters.

@@ -81,6 +81,9 @@ struct TrainOptions {
   /// The local apparel module's handle spacing (ApparelDynamicsOptions::handle_spacing, metres) for a fresh
   /// run or one started with --init (a per-vertex network fine-tuned on handles); < 0: the options' own.
   double handle_spacing = -1.0;
+  /// The local apparel module's physics inputs (ApparelDynamicsOptions::response) for a fresh run or one started
+  /// with --init from a module without them (its first block widened with zero weights: it starts as it was).
+  bool apparel_response = false;
   /// (run) Local apparel module: "squared" (the squared error of the detail vectors, in units of the
   /// target normaliser's scale) or "distance" (the mean Euclidean distance per vertex and frame in the
   /// same units, PMD's own measure: a window that went far off weighs linearly, not quadratically).

@@ -1223,6 +1223,9 @@ DressedCharacter dress_character_with(const GeneratedBody& body, const std::vect
       ph.linear_damping = std::min(ph.linear_damping * damping, 1.0f);
       ph.angular_damping = std::min(ph.angular_damping * damping, 1.0f);
       ph.stiffness *= factor();
+      const float limits = factor();  // MMD rigs range from locked to loose joints
+      ph.swing = std::min(ph.swing * limits, 80 * kDegrees);
+      ph.sway = std::min(ph.sway * limits, 80 * kDegrees);
     }
   }
 

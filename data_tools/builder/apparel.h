@@ -83,8 +83,9 @@ struct ApparelOptions {
   float stiffness_scale = 1.0f;
   /// Scale (> 0) on the damping of apparel bodies (clamped to [0, 1] after scaling).
   float damping_scale = 1.0f;
-  /// Per-piece spread of the physics, in [0, 4]: each piece's body mass, damping and spring stiffness are
-  /// multiplied by their own factors drawn log-uniformly in [1 / (1 + v), 1 + v] (damping clamped to [0, 1]),
+  /// Per-piece spread of the physics, in [0, 4]: each piece's body mass, damping, spring stiffness and angular
+  /// limits are multiplied by their own factors drawn log-uniformly in [1 / (1 + v), 1 + v] (damping clamped to
+  /// [0, 1], limits to 80 degrees),
   /// from a stream of the seed apart from the layout's draws. 0 (the default): every piece of a kind has the
   /// kind's physics, and the dressing is what it was before this option existed.
   float physics_variation = 0.0f;

@@ -22,6 +22,8 @@
 #include "data_tools/builder/apparel_simulation.h"
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/pmx_dataset.h"
+#include "data_tools/builder/pmx_physics.h"
+#include "data_tools/builder/rig_response.h"
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/dataset_file.h"
 #include "data_tools/formats/input_file.h"
@@ -781,8 +783,15 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
         writer.emplace(DatasetWriter::append(part));
       } else {
         writer.emplace(part, o.fps, canonical_joint_names());
-        writer->add_character(pmx ? pmx_dataset_character(*pmx, planned.name, planned.split).data
-                                  : dressed->character_data(planned.name, planned.split));
+        CharacterData data = pmx ? pmx_dataset_character(*pmx, planned.name, planned.split).data
+                                 : dressed->character_data(planned.name, planned.split);
+        // How lively the character's apparel physics is, on the same world settings as its clips.
+        PhysicsSettings physics = pmx ? pmx_physics_settings() : PhysicsSettings();
+        physics.fixed_step = o.physics_step;
+        physics.solver_iterations = o.solver_iterations;
+        physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(1.0 / 30.0 / o.physics_step)));
+        data.rig->response = rig_response(pmx ? pmx->physics : dressed->rig, physics, pmx ? pmx->scale : 1.0f);
+        writer->add_character(data);
       }
       const int B = pmx ? pmx->num_bones() : dressed->rig.num_bones(), J = kCanonicalJointCount;
       for (int k = batch; k < end; ++k) {

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <set>
 #include <vector>
 
@@ -98,6 +99,26 @@ void read_shard(const std::string& character, int clips, ShardSummary& shard) {
   }
 }
 
+// A rig's physics response (Rig::response) in a few words: its simulated bones and their median swing during the
+// probe's sway and after it; "-" without a response.
+std::string physics_text(const std::optional<Rig>& rig) {
+  if (!rig || rig->response.rows() == 0) return "-";
+  std::vector<float> during, after;
+  for (Eigen::Index b = 0; b < rig->response.rows(); ++b) {
+    if (!(rig->response(b, 0) > 0)) continue;
+    during.push_back(rig->response(b, 1));
+    after.push_back(rig->response(b, 2));
+  }
+  if (during.empty()) return "none simulated";
+  const auto median = [](std::vector<float> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  char text[96];
+  std::snprintf(text, sizeof(text), "%zu simulated, swing %.2f / %.2f", during.size(), median(during), median(after));
+  return text;
+}
+
 }  // namespace
 
 void print_dataset_info(const std::string& path, std::ostream& out) {
@@ -110,13 +131,15 @@ void print_dataset_info(const std::string& path, std::ostream& out) {
   out << "  skeleton  " << reader.num_joints() << " joints\n";
 
   SplitCounts character_splits;
-  Table characters({"name", "vertices", "faces", "apparel", "split", "rig"}, {false, true, true, true, false, false});
+  Table characters({"name", "vertices", "faces", "apparel", "split", "rig", "physics (median swing during / after)"},
+                   {false, true, true, true, false, false, false});
   for (const std::string& name : reader.character_names()) {
     const CharacterSummary c = reader.character_summary(name);
     character_splits.add(c.split);
     characters.add({c.name, std::to_string(c.num_vertices), std::to_string(c.num_faces),
                     percent(c.num_apparel_vertices, c.num_vertices), c.split,
-                    c.num_bones > 0 ? std::to_string(c.num_bones) + " bones" : "-"});
+                    c.num_bones > 0 ? std::to_string(c.num_bones) + " bones" : "-",
+                    c.num_bones > 0 ? physics_text(reader.read_character(name).rig) : "-"});
   }
   out << "characters: " << reader.character_names().size() << " " << character_splits.text() << "\n";
   if (!reader.character_names().empty()) characters.print(out, "  ");

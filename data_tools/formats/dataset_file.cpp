@@ -122,6 +122,17 @@ void validate_rig(const Rig& rig, Eigen::Index num_vertices, const std::string& 
     }
   }
   check_weight_rows(rig.skin_weights, at + "/skin_weights");
+  if (rig.response.rows() > 0) {
+    AMT_CHECK(rig.response.rows() == static_cast<Eigen::Index>(B) && rig.response.cols() == kRigResponseChannels, at,
+              "/response: expected (B,", kRigResponseChannels, ") = (", B, ",", kRigResponseChannels, "), found (",
+              rig.response.rows(), ",", rig.response.cols(), ")");
+    for (Eigen::Index b = 0; b < rig.response.rows(); ++b) {
+      AMT_CHECK(rig.response.row(b).allFinite() && rig.response(b, 0) >= 0 && rig.response(b, 0) <= 1 &&
+                    rig.response.row(b).minCoeff() >= 0 && rig.response.row(b).maxCoeff() <= 4,
+                at, "/response: expected finite values in [0, 4] with a first column in [0, 1], found ",
+                rig.response.row(b), " for bone ", b);
+    }
+  }
 }
 
 // Validates a character against the file's joint names. `where` is "<file>: /characters/<name>".
@@ -512,6 +523,10 @@ void DatasetWriter::add_character(const CharacterData& c) {
                       at + "/rest_transforms");
     h5::write_dataset(r, "skin_indices", rig.skin_indices.data(), {N, K}, true, at + "/skin_indices");
     h5::write_dataset(r, "skin_weights", rig.skin_weights.data(), {N, K}, true, at + "/skin_weights");
+    if (rig.response.rows() > 0) {
+      h5::write_dataset(r, "response", rig.response.data(), {B, hsize_t(kRigResponseChannels)}, false,
+                        at + "/response");
+    }
     shape.has_rig = true;
     shape.num_bones = B;
   }
@@ -674,6 +689,10 @@ CharacterData DatasetReader::Impl::read_character(const std::string& name) const
     rig.rest_transforms = read_transforms(r, "rest_transforms", at + "/rest_transforms", "(B,3,4)");
     rig.skin_indices = read_matrix<MatrixXiR>(r, "skin_indices", at + "/skin_indices", "(N,K)", Elements::kInt32, -1);
     rig.skin_weights = read_matrix<MatrixXfR>(r, "skin_weights", at + "/skin_weights", "(N,K)", Elements::kFloat32, -1);
+    if (h5::has_child(r, "response")) {
+      rig.response =
+          read_matrix<MatrixXfR>(r, "response", at + "/response", "(B,3)", Elements::kFloat32, kRigResponseChannels);
+    }
     c.rig = std::move(rig);
   }
   validate_character(c, root.joint_names, where);
@@ -942,7 +961,8 @@ std::optional<ApparelBones> rig_apparel_bones(const CharacterData& character) {
     heads.row(b) = rig.rest_transforms[b].col(3).transpose();
   }
   if (std::find(keep.begin(), keep.end(), uint8_t(1)) == keep.end()) return std::nullopt;
-  return select_apparel_bones(rig.bone_names, heads, rig.bone_parents, rig.skin_indices, rig.skin_weights, keep);
+  return select_apparel_bones(rig.bone_names, heads, rig.bone_parents, rig.skin_indices, rig.skin_weights, keep,
+                              rig.response);
 }
 
 }  // namespace amt

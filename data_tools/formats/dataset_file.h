@@ -11,7 +11,8 @@
 //                          joint_parents (J) i32, apparel_mask (N) u8, body_weights (N,J) f32;
 //                          attribute split ("train" | "test")
 //   /characters/<name>/rig/  optional: attribute bone_names (B strings), bone_parents (B) i32,
-//                          rest_transforms (B,3,4) f32, skin_indices (N,K) i32, skin_weights (N,K) f32
+//                          rest_transforms (B,3,4) f32, skin_indices (N,K) i32, skin_weights (N,K) f32,
+//                          optional response (B,3) f32 (the rig's physics response, Rig::response)
 //   /clips/<name>/         attributes character, motion, fps, split; joint_transforms (T,J,3,4) f32;
 //                          ground truth vertices (T,N,3) f32 or rig_transforms (T,B,3,4) f32
 // Per-frame arrays are chunked one frame per chunk, compressed (shuffle + deflate), and extendible in
@@ -62,6 +63,9 @@ struct Rig {
   MatrixXiR skin_indices;
   /// (N, K) non-negative skin weights, rows sum to 1.
   MatrixXfR skin_weights;
+  /// Optional (B, kRigResponseChannels): each bone's response to the body's motion under this rig's physics
+  /// (rig_response, data_tools/builder/rig_response.h); empty when the file has none (datasets written before it).
+  MatrixXfR response;
 
   int num_bones() const { return static_cast<int>(bone_names.size()); }
 };

@@ -300,11 +300,14 @@ ApparelHandles apparel_handles(const MatrixX3f& V, const MatrixX2i& edges, const
 
 namespace amt {
 
-ApparelBones select_apparel_bones(const std::vector<std::string>& names, const MatrixX3f& heads,
-                                  const std::vector<int32_t>& parents,
-                                  const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
-                                  const MatrixXfR& weights, const std::vector<uint8_t>& keep) {
+ApparelBones select_apparel_bones(
+    const std::vector<std::string>& names, const MatrixX3f& heads, const std::vector<int32_t>& parents,
+    const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices, const MatrixXfR& weights,
+    const std::vector<uint8_t>& keep, const MatrixXfR& response) {
   const int B = static_cast<int>(names.size());
+  AMT_CHECK(response.rows() == 0 || (response.rows() == B && response.cols() == kRigResponseChannels),
+            "apparel bones: response: expected (", B, ", ", kRigResponseChannels, ") or none, found (", response.rows(),
+            ", ", response.cols(), ")");
   AMT_CHECK(heads.rows() == B && static_cast<int>(parents.size()) == B && static_cast<int>(keep.size()) == B,
             "apparel bones: expected ", B, " heads, parents and flags, found ", heads.rows(), ", ", parents.size(),
             " and ", keep.size());
@@ -336,6 +339,42 @@ ApparelBones select_apparel_bones(const std::vector<std::string>& names, const M
       if (!kept) out.weights(i, k) = 0.0f;
     }
   }
+  if (response.rows() > 0) {
+    out.response.resize(out.num_bones(), kRigResponseChannels);
+    for (int b = 0; b < B; ++b)
+      if (renumber[b] >= 0) out.response.row(renumber[b]) = response.row(b);
+  }
+  return out;
+}
+
+MatrixXfR vertex_response(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                          const MatrixXfR& weights, const MatrixXfR& bone_response,
+                          const std::vector<int32_t>& vertices) {
+  AMT_CHECK(indices.rows() == weights.rows() && indices.cols() == weights.cols(),
+            "vertex response: expected skin indices and weights of one shape, found (", indices.rows(), ", ",
+            indices.cols(), ") and (", weights.rows(), ", ", weights.cols(), ")");
+  AMT_CHECK(bone_response.cols() == kRigResponseChannels, "vertex response: expected ", kRigResponseChannels,
+            " channels per bone, found ", bone_response.cols());
+  const Eigen::Index B = bone_response.rows();
+  MatrixXfR out = MatrixXfR::Zero(static_cast<Eigen::Index>(vertices.size()), kRigResponseChannels);
+  for (size_t m = 0; m < vertices.size(); ++m) {
+    const int32_t i = vertices[m];
+    AMT_CHECK(i >= 0 && i < indices.rows(), "vertex response: vertex ", i, " out of range [0, ", indices.rows(), ")");
+    float total = 0, moved = 0;
+    Eigen::RowVectorXf sum = Eigen::RowVectorXf::Zero(kRigResponseChannels);
+    for (Eigen::Index k = 0; k < indices.cols(); ++k) {
+      const int32_t b = indices(i, k);
+      const float w = weights(i, k);
+      if (!(w > 0)) continue;
+      total += w;
+      if (b < 0 || b >= B || bone_response(b, 0) <= 0) continue;
+      moved += w;
+      sum += w * bone_response.row(b);
+    }
+    if (moved <= 0) continue;
+    out.row(static_cast<Eigen::Index>(m)) = sum / moved;
+    out(static_cast<Eigen::Index>(m), 0) = total > 0 ? moved / total : 0.0f;
+  }
   return out;
 }
 
@@ -343,13 +382,14 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
                             int max_handles) {
   const int B = bones.num_bones(), N_a = static_cast<int>(apparel.size());
   AMT_CHECK(max_handles >= 1, "bone handles: max_handles: expected at least 1, found ", max_handles);
-  AMT_CHECK(bones.heads.rows() == B && static_cast<int>(bones.parents.size()) == B,
-            "bone handles: expected ", B, " heads and parents, found ", bones.heads.rows(), " and ", bones.parents.size());
+  AMT_CHECK(bones.heads.rows() == B && static_cast<int>(bones.parents.size()) == B, "bone handles: expected ", B,
+            " heads and parents, found ", bones.heads.rows(), " and ", bones.parents.size());
   AMT_CHECK(bones.indices.rows() == V.rows() && bones.weights.rows() == V.rows() &&
                 bones.indices.cols() == bones.weights.cols(),
             "bone handles: expected skin indices and weights of ", V.rows(), " vertices, found ", bones.indices.rows(),
             " and ", bones.weights.rows());
-  for (const int32_t v : apparel) AMT_CHECK(v >= 0 && v < V.rows(), "bone handles: apparel vertex ", v, " out of range");
+  for (const int32_t v : apparel)
+    AMT_CHECK(v >= 0 && v < V.rows(), "bone handles: apparel vertex ", v, " out of range");
   // Each bone's heaviest apparel vertices, heaviest first, then nearest its head.
   struct Candidate {
     float weight, distance;
@@ -404,8 +444,10 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
       if (b < 0 || b >= B || !(bones.weights(v, k) > 0.0f)) continue;
       const int h = handle_of_bone[b];
       auto it = std::find_if(w.begin(), w.end(), [h](const auto& e) { return e.second == h; });
-      if (it == w.end()) w.push_back({bones.weights(v, k), h});
-      else it->first += bones.weights(v, k);
+      if (it == w.end())
+        w.push_back({bones.weights(v, k), h});
+      else
+        it->first += bones.weights(v, k);
     }
     if (w.empty()) {  // outside the rig's apparel: the nearest handle at rest
       int best = 0;
@@ -445,7 +487,8 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
   edges.erase(std::remove_if(edges.begin(), edges.end(), [](const auto& e) { return e.first == e.second; }),
               edges.end());
   out.handle_edges.resize(static_cast<Eigen::Index>(edges.size()), 2);
-  for (size_t e = 0; e < edges.size(); ++e) out.handle_edges.row(static_cast<Eigen::Index>(e)) << edges[e].first, edges[e].second;
+  for (size_t e = 0; e < edges.size(); ++e)
+    out.handle_edges.row(static_cast<Eigen::Index>(e)) << edges[e].first, edges[e].second;
   return out;
 }
 

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/rig_probe.h"
 #include "data_tools/geometry/types.h"
 
 namespace amt {
@@ -126,22 +127,34 @@ ApparelHandles apparel_handles(const MatrixX3f& V, const MatrixX2i& edges, const
 ///   parents   B parent indices among these bones, -1 for a chain's first bone
 ///   indices, weights  (N, K) per mesh vertex: bone indices among these bones (-1: none) and the vertex's own
 ///             skin weights on them (not renormalised: a vertex half on a body bone has 0.5 here)
+///   response  (B, kRigResponseChannels) how each bone responds to the body's motion under the character's own
+///             physics (rig_response, data_tools/builder/rig_response.h), or empty when unknown
 struct ApparelBones {
   std::vector<std::string> names;
   MatrixX3f heads;
   std::vector<int32_t> parents;
   Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> indices;
   MatrixXfR weights;
+  MatrixXfR response;
   int num_bones() const { return static_cast<int>(names.size()); }
 };
 
 /// The bones `keep` (B_all entries, 1 = apparel bone) of a rig of B_all bones (names, rest heads (B_all, 3), parents
 /// in [-1, B_all)), with per-vertex influences (N, K) over all of them: the kept bones renumbered, parents mapped to
-/// the nearest kept ancestor, influences on other bones dropped. Throws amt::Error on inputs of the wrong size.
-ApparelBones select_apparel_bones(const std::vector<std::string>& names, const MatrixX3f& heads,
-                                  const std::vector<int32_t>& parents,
-                                  const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
-                                  const MatrixXfR& weights, const std::vector<uint8_t>& keep);
+/// the nearest kept ancestor, influences on other bones dropped; `response` (B_all rows, or empty) keeps the kept
+/// bones' rows. Throws amt::Error on inputs of the wrong size.
+ApparelBones select_apparel_bones(
+    const std::vector<std::string>& names, const MatrixX3f& heads, const std::vector<int32_t>& parents,
+    const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices, const MatrixXfR& weights,
+    const std::vector<uint8_t>& keep, const MatrixXfR& response = MatrixXfR());
+
+/// The response of each vertex `vertices` (ascending or not; M entries) from its bones': channel 0 the share of its
+/// skin weight on bones the simulation moves, channels 1.. the weighted mean of those bones' responses (0 where it
+/// has none). indices (N, K) bone indices (< 0 or >= B: none), weights (N, K), bone_response (B,
+/// kRigResponseChannels) -> (M, kRigResponseChannels). Throws amt::Error on inputs of the wrong size.
+MatrixXfR vertex_response(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                          const MatrixXfR& weights, const MatrixXfR& bone_response,
+                          const std::vector<int32_t>& vertices);
 
 /// Handles of the apparel vertices `apparel` (ascending mesh indices) of V from the character's own bones: one
 /// handle per bone that weighs an apparel vertex, at the apparel vertex it weighs most (ties: the one nearest its

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/rig_probe.h"
 #include "data_tools/geometry/skeleton.h"
 #include "data_tools/geometry/types.h"
 
@@ -111,5 +112,11 @@ class SpringBoneSimulator {
   long long steps_ = 0;
   double frame_time_ = 0.0;
 };
+
+/// The physics response of a character's spring bones (probe_response, rig_probe.h), per skeleton joint (J rows;
+/// `skeleton` in metres): a joint is simulated when it is a segment's joint. The probe's scale is the one of
+/// rig_response (data_tools/builder/rig_response.h), so a VRM avatar's springs and a PMX model's rigid bodies read
+/// alike. Deterministic. Throws amt::Error for a rig that fails validate_spring_rig or a probe option out of range.
+MatrixXfR spring_response(const Skeleton& skeleton, const SpringRig& rig, const RigProbeOptions& probe = {});
 
 }  // namespace amt

@@ -90,10 +90,30 @@ TEST(RigHandles, APmxModelsPhysicsDrivenBonesBecomeTheHandles) {
   }
   // The graph over the handles: the chain 髪1-髪2-髪3.
   ASSERT_EQ(bound.handle_edges.size(0), 2);
-  // Without the bones the same bind picks handles automatically along the hair, at the module's spacing.
+  // The bones' physics response, measured on the model's own rigid bodies: all three simulated, and every apparel
+  // vertex (BDEF1) reads its own bone's row.
+  ASSERT_EQ(bones.response.rows(), 3);
+  for (int b = 0; b < 3; ++b) EXPECT_EQ(bones.response(b, 0), 1.0f) << "bone " << b;
+  EXPECT_GT(bones.response.col(1).maxCoeff(), 0.0f);
+  ASSERT_TRUE(bound.apparel_response.defined());
+  ASSERT_EQ(bound.apparel_response.sizes(), (std::vector<int64_t>{24, kApparelResponseChannels}));
+  for (int64_t r2 = 0; r2 < bound.num_apparel(); ++r2) {
+    const int64_t v = ids[r2].item<int64_t>();
+    for (int64_t k = 0; k < kApparelResponseChannels; ++k)
+      EXPECT_FLOAT_EQ(bound.apparel_response[r2][k].item<float>(), bones.response(bones.indices(v, 0), k))
+          << "vertex " << v << " channel " << k;
+  }
+  // Without the bones the same bind picks handles automatically along the hair, at the module's spacing, and reads
+  // the physics only when given the bones for it.
   o.apparel_bones = nullptr;
   const BoundCharacter automatic = bind_character(bundle, V, F, joints, o);
   EXPECT_GT(automatic.handle_rows.size(0), 0);
+  EXPECT_FALSE(automatic.apparel_response.defined());
+  o.physics_bones = c.rig_bones;
+  const BoundCharacter with_physics = bind_character(bundle, V, F, joints, o);
+  EXPECT_TRUE(at::equal(with_physics.handle_rows, automatic.handle_rows));
+  ASSERT_TRUE(with_physics.apparel_response.defined());
+  EXPECT_TRUE(at::equal(with_physics.apparel_response, bound.apparel_response));
 }
 
 // The bind cache keys on the bones: switching --apparel-handles recomputes the bind instead of loading the other.
@@ -111,6 +131,15 @@ TEST(RigHandles, TheBindCacheTellsRigHandlesFromAutomaticOnes) {
   const BindResult again = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr);
   EXPECT_TRUE(again.cache_hit);
   EXPECT_TRUE(at::equal(again.bound.handle_rows, automatic.bound.handle_rows));
+  // The physics response is part of the key, and the cache keeps it.
+  const BindResult physics =
+      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, c.rig_bones);
+  EXPECT_FALSE(physics.cache_hit);
+  ASSERT_TRUE(physics.bound.apparel_response.defined());
+  const BindResult physics_again =
+      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, c.rig_bones);
+  EXPECT_TRUE(physics_again.cache_hit);
+  EXPECT_TRUE(at::equal(physics_again.bound.apparel_response, physics.bound.apparel_response));
 }
 
 TEST(RigHandles, AnimateTakesTheRigsBonesWhenAskedAndNamesThemOtherwise) {

@@ -148,6 +148,17 @@ void expect_godette(const RuntimeCharacter& c, const Glb& raw, const std::set<in
   EXPECT_LT(expected_count, g.mesh.num_vertices() / 10);
   ASSERT_NE(c.rig_bones, nullptr);
   EXPECT_NE(c.rig_apparel.find("spring bones"), std::string::npos) << c.rig_apparel;
+  // The springs' physics response (spring_response): every bone of the rig has a row, the simulated ones (the spring
+  // joints and what hangs below them) are flagged, and they swing off rigid skinning under the probe, within the cap.
+  const MatrixXfR& r = c.rig_bones->response;
+  ASSERT_EQ(r.rows(), c.rig_bones->num_bones());
+  int simulated = 0;
+  for (Eigen::Index b = 0; b < r.rows(); ++b) {
+    simulated += r(b, 0) == 1.0f;
+    EXPECT_LE(r.row(b).maxCoeff(), 4.0f);
+  }
+  EXPECT_GT(simulated, 0);
+  EXPECT_GT(r.col(1).maxCoeff(), 0.01f);
 }
 
 TEST(VrmAvatar, AVrm0AvatarMapsByItsHumanoidTurnsToFacePlusZAndItsSpringBonesAreItsApparel) {

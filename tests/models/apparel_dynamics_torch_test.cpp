@@ -192,6 +192,64 @@ TEST(ApparelDynamics, WithoutContactTheFeaturesAreTheFirstChannels) {
   }
 }
 
+// The physics inputs (options.response) are the last channels, zeros where the graph has none; a module
+// widened from one without them computes what it did, on both inference paths, until training moves the new
+// weights, and once they move the fused path still equals the tensor path.
+TEST(ApparelDynamics, ResponseInputsAreTheLastChannelsAndAWidenedModuleComputesItsSource) {
+  torch::manual_seed(12);
+  const int64_t N = 300, J = 4;
+  ApparelGraph g = chain_graph(N, J);
+  const at::Tensor T = random_transforms(4, J).unsqueeze(0), A = 0.1 * at::randn({1, 3, N, 3}),
+                   S = 0.1 * at::randn({1, 4, N, 3});
+  ApparelDynamicsNet source = lively_network(J, g);
+  ApparelDynamicsOptions o = source->options;
+  o.response = true;
+  ApparelDynamicsNet widened(o);
+  ASSERT_EQ(widened->channels(), source->channels() + kApparelResponseChannels);
+  const int64_t C = source->channels();
+
+  // Undefined: zeros; defined: the graph's values, after the other channels unchanged.
+  const at::Tensor none = widened->features(A, T, S, g);
+  EXPECT_TRUE(at::equal(none.narrow(2, 0, C), source->features(A, T, S, g)));
+  EXPECT_TRUE(at::equal(none.narrow(2, C, kApparelResponseChannels), at::zeros({1, N, kApparelResponseChannels})));
+  g.response = at::rand({N, kApparelResponseChannels});
+  const at::Tensor with = widened->features(A, T, S, g);
+  EXPECT_TRUE(at::equal(with.narrow(2, C, kApparelResponseChannels).squeeze(0), g.response));
+
+  widened->widen_from(*source);
+  const at::Tensor expected = source->step(A, T, S, g).detach();
+  EXPECT_TRUE(at::allclose(widened->step(A, T, S, g).detach(), expected, 1e-6, 1e-6));
+  {
+    c10::InferenceMode inference;
+    EXPECT_TRUE(at::allclose(widened->step(A, T, S, g), expected, 1e-6, 1e-6));
+  }
+  // Moved weights: the response now changes the output, the same on both paths.
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : widened->parameters()) p.add_(0.1 * at::randn(p.sizes()));
+  }
+  const at::Tensor tensor_path = widened->step(A, T, S, g).detach();
+  at::Tensor fused_path;
+  {
+    c10::InferenceMode inference;
+    fused_path = widened->step(A, T, S, g);
+  }
+  EXPECT_TRUE(at::allclose(fused_path, tensor_path, 1e-5, 1e-5))
+      << "max difference " << (fused_path - tensor_path).abs().max().item<float>();
+  ApparelGraph calm = g;
+  calm.response = at::zeros({N, kApparelResponseChannels});
+  EXPECT_GT((widened->step(A, T, S, calm).detach() - tensor_path).abs().max().item<float>(), 1e-3);
+
+  // Refused: widening a module that has the inputs, or into one that differs otherwise; a response of
+  // the wrong shape.
+  EXPECT_THROW(widened->widen_from(*widened), Error);
+  ApparelDynamicsOptions other = o;
+  other.edge_widths = {8, 8};
+  EXPECT_THROW(ApparelDynamicsNet(other)->widen_from(*source), Error);
+  g.response = at::zeros({N, 2});
+  EXPECT_THROW(widened->features(A, T, S, g), c10::Error);
+}
+
 TEST(ApparelDynamics, RigidMotionAboutGravityLeavesDetailVectorsUnchanged) {
   torch::manual_seed(4);
   const int64_t N = 6, J = 3;

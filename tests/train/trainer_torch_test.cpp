@@ -394,6 +394,18 @@ TEST(LocalApparel, InitStartsANewRunFromAnotherRunsNetwork) {
   fresh.init.clear();
   fresh.networks.apparel_dynamics.edge_widths = {6, 5};
   EXPECT_NE(train_module(ModuleKind::kApparel, {split_dataset()}, fresh).losses[0], r.losses[0]);
+  // --apparel-response widens the source (its physics inputs start with zero weights): the same first loss, and a
+  // checkpoint that has the inputs.
+  TrainOptions widened = tuned;
+  widened.out_dir = (test_dir() / "init_widened").string();
+  widened.apparel_response = true;
+  const TrainResult w = train_module(ModuleKind::kApparel, {split_dataset()}, widened);
+  EXPECT_NEAR(w.losses[0], r.losses[0], 1e-5 * std::abs(r.losses[0]));
+  CheckpointInfo c;
+  ApparelDynamicsNet with_response =
+      load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(w.checkpoint, ModuleKind::kApparel, c);
+  EXPECT_TRUE(with_response->options.response);
+  EXPECT_EQ(with_response->channels(), from->channels() + kApparelResponseChannels);
   // --init with --resume is refused, naming both.
   TrainOptions both = tuned;
   both.resume = r.checkpoint;

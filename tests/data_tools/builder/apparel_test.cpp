@@ -268,6 +268,19 @@ TEST(Apparel, PhysicsVariationScalesEachPieceWithinItsBoundsAndChangesNothingEls
     EXPECT_GE(y / x, 1 / 2.25f - 1e-4f) << a.rig.joints[k].name;
     EXPECT_LE(y / x, 2.25f + 1e-4f) << a.rig.joints[k].name;
   }
+  // Angular limits: the piece's own factor within [1/1.5, 1.5], at most 80 degrees.
+  int changed = 0;
+  for (int k = 0; k < a.rig.num_joints(); ++k) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const float x = a.rig.joints[k].angular_max(axis), y = b.rig.joints[k].angular_max(axis);
+      if (!(x > 0) || a.rig.joints[k].angular_min(axis) > x) continue;  // locked or free
+      EXPECT_GE(y / x, 1 / 1.5f - 1e-4f) << a.rig.joints[k].name;
+      EXPECT_LE(y / x, 1.5f + 1e-4f) << a.rig.joints[k].name;
+      EXPECT_LE(y, 80.0f * 3.14159265f / 180.0f + 1e-5f) << a.rig.joints[k].name;
+      changed += std::abs(y / x - 1) > 1e-3f;
+    }
+  }
+  EXPECT_GT(changed, 0);
 }
 
 TEST(Apparel, BadOptionsGiveErrors) {

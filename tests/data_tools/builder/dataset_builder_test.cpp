@@ -118,7 +118,20 @@ TEST_F(DatasetBuilder, WritesOneShardPerCharacterWithEveryClip) {
     EXPECT_TRUE(first[j].leftCols<3>().isIdentity(1e-6f));
     EXPECT_TRUE(first[j].col(3).transpose().isApprox(character.skeleton.rest_joints.row(j), 1e-6f));
   }
-  EXPECT_TRUE(character.rig.has_value());
+  ASSERT_TRUE(character.rig.has_value());
+  // The rig's physics response: the body's bones follow the animation (all zeros), the apparel chains'
+  // bones are simulated, and those below a chain's first bone swing off rigid skinning during the probe.
+  const Rig& rig = *character.rig;
+  ASSERT_EQ(rig.response.rows(), rig.num_bones());
+  int moved = 0;
+  float largest = 0;
+  for (int b = 0; b < rig.num_bones(); ++b) {
+    if (b < kCanonicalJointCount) EXPECT_TRUE(rig.response.row(b).isZero()) << rig.bone_names[b];
+    moved += rig.response(b, 0) == 1.0f;
+    largest = std::max(largest, rig.response(b, 1));
+  }
+  EXPECT_GT(moved, 0);
+  EXPECT_GT(largest, 0.05f);
 }
 
 TEST_F(DatasetBuilder, SplitsNeverShareCharactersOrClips) {

@@ -57,6 +57,8 @@ CharacterData square(const std::string& name, const std::string& split, int appa
     rig.rest_transforms.assign(3, Transform34::Identity());
     rig.skin_indices = MatrixXiR::Zero(4, 1);
     rig.skin_weights = MatrixXfR::Ones(4, 1);
+    rig.response.resize(3, 3);
+    rig.response << 0, 0, 0, 1, 0.5f, 0.25f, 1, 0.75f, 0.5f;  // medians of two: the upper one
     c.rig = rig;
   }
   return c;
@@ -109,6 +111,7 @@ TEST(DatasetInfo, PrintsCountsSharesAndSplits) {
   EXPECT_TRUE(contains(text, "25.0 %")) << text;  // bob: 1 of 4 vertices
   EXPECT_TRUE(contains(text, "50.0 %")) << text;  // ann: 2 of 4 vertices
   EXPECT_TRUE(contains(text, "3 bones")) << text;
+  EXPECT_TRUE(contains(text, "2 simulated, swing 0.75 / 0.50")) << text;  // ann's response: bones 1 and 2
   EXPECT_TRUE(contains(text, "totals: 2 characters (train 1, test 1), 3 clips (train 2, test 1), 17 frames")) << text;
   // One row per clip, with its frames and ground-truth form.
   std::istringstream lines(text);

@@ -282,6 +282,8 @@ TEST(DatasetFile, RigClipSkinsVerticesAsComputedByHand) {
   const Skeleton s = chain();
   CharacterData bob = tetrahedron("bob", s);
   bob.rig = two_bone_rig();
+  bob.rig->response.resize(2, kRigResponseChannels);
+  bob.rig->response << 0, 0, 0, 1, 0.75f, 0.25f;  // the hips kinematic, the skirt simulated
   // Frame 0: rest (identity skinning matrices). Frame 1: the skirt bone moves up by (0, 1, 0).
   // Frame 2: the hips bone turns 90 degrees about Y about the origin, the skirt bone stays.
   const Transforms rest = {Transform34::Identity(), Transform34::Identity()};
@@ -307,6 +309,7 @@ TEST(DatasetFile, RigClipSkinsVerticesAsComputedByHand) {
   EXPECT_TRUE(bitwise_equal(read.rig->rest_transforms, bob.rig->rest_transforms));
   EXPECT_EQ(read.rig->skin_indices, bob.rig->skin_indices);
   EXPECT_EQ(read.rig->skin_weights, bob.rig->skin_weights);
+  EXPECT_EQ(read.rig->response, bob.rig->response);
 
   const ClipInfo info = reader.clip_info("sim");
   EXPECT_EQ(info.ground_truth, GroundTruth::kRig);
@@ -579,6 +582,27 @@ TEST(DatasetFileErrors, WrongElementType) {
                {path.str(), "/characters/bob/faces", "expected int32 elements, found float32"});
 }
 
+TEST(DatasetFileErrors, RigResponseOfTheWrongShapeOrRange) {
+  TempPath path;
+  const Skeleton s = chain();
+  CharacterData bob = tetrahedron("bob", s);
+  bob.rig = two_bone_rig();
+  {
+    DatasetWriter writer(path.str(), 30.0f, s.names);
+    writer.add_character(bob);
+    writer.commit();
+  }
+  EXPECT_EQ(DatasetReader(path.str()).read_character("bob").rig->response.rows(), 0);  // none written: none read
+  const float narrow[] = {0, 0, 1, 0.5f};
+  RawFile(path.str()).replace("/characters/bob/rig/response", {2, 2}, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, narrow);
+  expect_error([&] { DatasetReader(path.str()).read_character("bob"); },
+               {path.str(), "/characters/bob/rig/response", "(B,3)"});
+  const float absurd[] = {0, 0, 0, 1, 50, 0};
+  RawFile(path.str()).replace("/characters/bob/rig/response", {2, 3}, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, absurd);
+  expect_error([&] { DatasetReader(path.str()).read_character("bob"); },
+               {path.str(), "/characters/bob/rig/response", "[0, 4]", "for bone 1"});
+}
+
 TEST(DatasetFileErrors, ApparelMaskLengthDisagrees) {
   TempPath path;
   write_vertex_dataset(path.str());
@@ -714,6 +738,16 @@ TEST(DatasetWriterErrors, RejectsBadCharacters) {
   rig.rig = two_bone_rig();
   rig.rig->bone_parents = {-1, 1};
   expect_error([&] { writer.add_character(rig); }, {path.str(), "/characters/rig/rig/bone_parents", "for bone 1"});
+  rig.rig = two_bone_rig();
+  rig.rig->response = MatrixXfR::Zero(2, 2);
+  expect_error([&] { writer.add_character(rig); },
+               {path.str(), "/characters/rig/rig/response", "expected (B,3) = (2,3)", "found (2,2)"});
+  rig.rig->response = MatrixXfR::Zero(2, kRigResponseChannels);
+  rig.rig->response(1, 2) = std::numeric_limits<float>::quiet_NaN();
+  expect_error([&] { writer.add_character(rig); }, {path.str(), "/characters/rig/rig/response", "for bone 1"});
+  rig.rig->response(1, 2) = 0.0f;
+  rig.rig->response(1, 0) = 2.0f;  // the moved share is at most 1
+  expect_error([&] { writer.add_character(rig); }, {path.str(), "/characters/rig/rig/response", "in [0, 1]"});
 
   writer.add_character(tetrahedron("bob", s));
   expect_error([&] { writer.add_character(tetrahedron("bob", s)); },

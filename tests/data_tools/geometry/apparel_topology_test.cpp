@@ -310,5 +310,42 @@ TEST(BoneHandles, ABoneWithNoVertexOfItsOwnJoinsTheHandleThereAndBadInputIsRefus
   }
 }
 
+TEST(BoneResponse, SelectKeepsTheKeptBonesRowsAndVerticesAverageTheirMovedBones) {
+  const RiggedChain c = rigged_chain();
+  MatrixXfR response(5, kRigResponseChannels);
+  response << 0, 0, 0,  // neck: not simulated
+      1, 0.2f, 0.1f,    // hair0
+      1, 0.6f, 0.3f,    // hair1
+      1, 1.0f, 0.5f,    // hair2
+      1, 2.0f, 1.0f;    // tip
+  const ApparelBones b =
+      select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {0, 1, 0, 1, 0}, response);
+  ASSERT_EQ(b.response.rows(), 2);
+  EXPECT_FLOAT_EQ(b.response(0, 1), 0.2f);  // hair0
+  EXPECT_FLOAT_EQ(b.response(1, 2), 0.5f);  // hair2
+  EXPECT_EQ(select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {0, 1, 0, 1, 0}).response.rows(),
+            0);
+  EXPECT_THROW(select_apparel_bones(c.names, c.heads, c.parents, c.indices, c.weights, {0, 1, 0, 1, 0},
+                                    MatrixXfR::Zero(4, kRigResponseChannels)),
+               Error);
+
+  // Over the whole rig: v1 half neck (not moved) + half hair0; v3 0.25 hair0 + 0.75 hair1; v5 hair1 + hair2 halves;
+  // v6 neck alone.
+  const MatrixXfR r = vertex_response(c.indices, c.weights, response, {1, 3, 5, 6});
+  ASSERT_EQ(r.rows(), 4);
+  ASSERT_EQ(r.cols(), kRigResponseChannels);
+  EXPECT_FLOAT_EQ(r(0, 0), 0.5f);
+  EXPECT_FLOAT_EQ(r(0, 1), 0.2f);  // the moved bones' mean: hair0 alone
+  EXPECT_FLOAT_EQ(r(0, 2), 0.1f);
+  EXPECT_FLOAT_EQ(r(1, 0), 1.0f);
+  EXPECT_FLOAT_EQ(r(1, 1), 0.25f * 0.2f + 0.75f * 0.6f);
+  EXPECT_FLOAT_EQ(r(1, 2), 0.25f * 0.1f + 0.75f * 0.3f);
+  EXPECT_FLOAT_EQ(r(2, 1), 0.5f * 0.6f + 0.5f * 1.0f);
+  EXPECT_FLOAT_EQ(r(2, 2), 0.5f * 0.3f + 0.5f * 0.5f);
+  EXPECT_EQ(r.row(3), Eigen::RowVector3f::Zero());  // on the neck alone: nothing moves it
+  EXPECT_THROW(vertex_response(c.indices, c.weights, response, {7}), Error);
+  EXPECT_THROW(vertex_response(c.indices, c.weights, MatrixXfR::Zero(5, 2), {1}), Error);
+}
+
 }  // namespace
 }  // namespace amt
