@@ -234,8 +234,14 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
           parents[b] = model.bones[b].parent;
           heads.row(b) = model.bones[b].position.transpose();
         }
-        c.rig_bones = file_apparel_bones(names, parents, heads, pmx_skin_weights(model),
-                                         pmx_physics_driven_bones(model), pmx_bone_response(path));
+        const SparseWeights weights = pmx_skin_weights(model);
+        const std::vector<uint8_t> keep = pmx_physics_driven_bones(model);
+        c.rig_bones = file_apparel_bones(names, parents, heads, weights, keep);
+        if (c.rig_bones) {
+          c.rig_bones_with_response = [names, parents, heads, weights, keep, path] {
+            return file_apparel_bones(names, parents, heads, weights, keep, pmx_bone_response(path));
+          };
+        }
       }
       c.file_skeleton = pmx_skeleton(model);  // names made unique: PMX allows repeats
       if (spec.joints.empty()) c.file_weights = pmx_skin_weights(model);
@@ -267,16 +273,6 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     c.turned = true;
     if (spring_rig) turn_spring_rig(*spring_rig);
   }
-  // How lively a VRM avatar's springs are (the apparel module's physics inputs), on the skeleton they run on; a rig
-  // that cannot be simulated leaves them unknown (--apparel spring-bones names its fault).
-  MatrixXfR spring_bone_response;
-  if (spring_rig) {
-    try {
-      spring_bone_response = spring_response(c.file_skeleton, *spring_rig);
-    } catch (const Error&) {
-      spring_bone_response = MatrixXfR();
-    }
-  }
   if (gltf_weights.num_vertices() == c.mesh.num_vertices() && spec.joints.empty()) {
     c.file_weights = gltf_weights;
     if (spring_rig) c.springs = std::move(spring_rig);
@@ -290,8 +286,22 @@ RuntimeCharacter load_character(const CharacterSpec& spec) {
     if (count > 0) {
       MatrixX3f heads(c.file_skeleton.num_joints(), 3);
       for (int j = 0; j < c.file_skeleton.num_joints(); ++j) heads.row(j) = c.file_skeleton.rest_joints.row(j);
-      c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain,
-                                       spring_bone_response);
+      c.rig_bones = file_apparel_bones(c.file_skeleton.names, c.file_skeleton.parents, heads, gltf_weights, chain);
+      const std::shared_ptr<const SpringRig> rig_springs = c.springs ? c.springs : spring_rig;
+      if (c.rig_bones && rig_springs) {
+        // How lively a VRM avatar's springs are, on the skeleton they run on; a rig that cannot be simulated leaves
+        // it unknown (--apparel spring-bones names its fault).
+        c.rig_bones_with_response = [skeleton = c.file_skeleton, springs = *rig_springs, heads, weights = gltf_weights,
+                                     chain] {
+          MatrixXfR response;
+          try {
+            response = spring_response(skeleton, springs);
+          } catch (const Error&) {
+            response = MatrixXfR();
+          }
+          return file_apparel_bones(skeleton.names, skeleton.parents, heads, weights, chain, response);
+        };
+      }
       c.rig_apparel_mask = std::move(rig);
       c.rig_apparel = springs.empty()
                           ? "glTF chains: " + std::to_string(count) + " vertices on " + std::to_string(chain_bones) +

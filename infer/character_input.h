@@ -4,6 +4,7 @@
 // canonical (issue 6, item 3): a canonical joint that the file lacks (no collars, two spine joints
 // instead of three, no foot) is placed on the line between its mapped neighbours; the file's extra
 // joints (twist, finger, apparel bones) are carried along by their nearest mapped ancestor.
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -61,6 +62,11 @@ struct RuntimeCharacter {
   /// physics-driven bones, a skinned glTF's chain bones, a dataset character's rig bones that are not joints of its
   /// skeleton (rig_apparel_bones); null when the character's rig names none (a generated character: none kept).
   std::shared_ptr<const ApparelBones> rig_bones;
+  /// rig_bones with ApparelBones::response measured (rig_probe.h: a PMX model's rigid bodies, a VRM avatar's
+  /// springs), for an apparel module that reads it; the probe simulates a few seconds of the rig, so it runs only
+  /// when called. Null when the file has no rig amt can simulate (rig_bones then carry what they have: a dataset
+  /// character's stored response, or none).
+  std::function<std::shared_ptr<const ApparelBones>()> rig_bones_with_response;
   std::string dataset, dataset_character;
   /// What the file is beyond its extension ("VRM 0.x", "VRM 1.0"; "" otherwise): a VRM avatar's humanoid map
   /// maps its skeleton and its spring bones are its rig's apparel.

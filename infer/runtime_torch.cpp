@@ -699,10 +699,16 @@ AnimateSummary animate(const AnimateOptions& o) {
   }
 
   // Inputs and model.
-  const RuntimeCharacter character = load_character(o.character);
+  RuntimeCharacter character = load_character(o.character);
   const SourceMotion source = load_motion(o.motion);
   const ModelBundle bundle = load_model_bundle(o.model_dir);
   check_bundle_skeleton(bundle, character.skeleton.names, o.model_dir);
+  // The rig's physics response, measured only for an apparel module that reads it.
+  const bool reads_response =
+      bundle.local_apparel() &&
+      (bundle.apparel_dynamics->options.response ||
+       (!bundle.apparel_dynamics_own_weights.is_empty() && bundle.apparel_dynamics_own_weights->options.response));
+  if (reads_response && character.rig_bones_with_response) character.rig_bones = character.rig_bones_with_response();
   std::vector<uint8_t> mask_override;
   s.apparel_source = "the segmenter";
   const bool use_rig = o.apparel_mask == "rig" ||

@@ -60,12 +60,18 @@ TEST(RigHandles, APmxModelsPhysicsDrivenBonesBecomeTheHandles) {
       torch::from_blob(const_cast<float*>(c.skeleton.rest_joints.data()), {J, 3}, torch::kFloat).clone();
   BindOptions o;
   o.apparel_mask = torch::tensor(std::vector<int64_t>(c.rig_apparel_mask.begin(), c.rig_apparel_mask.end())).to(torch::kBool);
-  o.apparel_bones = c.rig_bones;
+  ASSERT_TRUE(c.rig_bones_with_response);
+  o.apparel_bones = c.rig_bones_with_response();
   const BoundCharacter bound = bind_character(bundle, V, F, joints, o);
   ASSERT_EQ(bound.num_apparel(), 24);
   ASSERT_EQ(bound.handle_rows.size(0), 3);  // one handle per bone
   const at::Tensor ids = bound.apparel_ids;
-  const ApparelBones& bones = *c.rig_bones;
+  const ApparelBones& plain = *c.rig_bones;
+  EXPECT_EQ(plain.response.rows(), 0);  // measured only when asked for: the probe simulates the rig
+  const std::shared_ptr<const ApparelBones> measured = c.rig_bones_with_response();
+  const ApparelBones& bones = *measured;
+  EXPECT_EQ(bones.names, plain.names);
+  EXPECT_EQ(bones.weights, plain.weights);
   for (int h = 0; h < 3; ++h) {
     // The handle's vertex weighs bone h fully (BDEF1), and of the box's 8 such vertices it is the nearest to the
     // bone's head.
@@ -109,7 +115,7 @@ TEST(RigHandles, APmxModelsPhysicsDrivenBonesBecomeTheHandles) {
   const BoundCharacter automatic = bind_character(bundle, V, F, joints, o);
   EXPECT_GT(automatic.handle_rows.size(0), 0);
   EXPECT_FALSE(automatic.apparel_response.defined());
-  o.physics_bones = c.rig_bones;
+  o.physics_bones = measured;
   const BoundCharacter with_physics = bind_character(bundle, V, F, joints, o);
   EXPECT_TRUE(at::equal(with_physics.handle_rows, automatic.handle_rows));
   ASSERT_TRUE(with_physics.apparel_response.defined());
@@ -132,12 +138,13 @@ TEST(RigHandles, TheBindCacheTellsRigHandlesFromAutomaticOnes) {
   EXPECT_TRUE(again.cache_hit);
   EXPECT_TRUE(at::equal(again.bound.handle_rows, automatic.bound.handle_rows));
   // The physics response is part of the key, and the cache keeps it.
+  const std::shared_ptr<const ApparelBones> measured = c.rig_bones_with_response();
   const BindResult physics =
-      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, c.rig_bones);
+      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, measured);
   EXPECT_FALSE(physics.cache_hit);
   ASSERT_TRUE(physics.bound.apparel_response.defined());
   const BindResult physics_again =
-      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, c.rig_bones);
+      bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.rig_apparel_mask, cache, nullptr, {}, measured);
   EXPECT_TRUE(physics_again.cache_hit);
   EXPECT_TRUE(at::equal(physics_again.bound.apparel_response, physics.bound.apparel_response));
 }
