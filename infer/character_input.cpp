@@ -112,11 +112,7 @@ std::shared_ptr<const ApparelBones> file_apparel_bones(const std::vector<std::st
 MatrixXfR pmx_bone_response(const std::string& path) {
   try {
     const PmxCharacter c = pmx_physics_character(read_pmx(path));
-    PhysicsSettings settings = pmx_physics_settings();
-    settings.fixed_step = 1.0f / 240.0f;  // DatasetBuildOptions' physics step and iterations
-    settings.solver_iterations = 20;
-    settings.max_substeps = std::max(settings.max_substeps, 8);
-    return rig_response(c.physics, settings, c.scale);
+    return rig_response(c.physics, pmx_simulation_settings(PmxSimulationOptions{}, path), c.scale);
   } catch (const Error&) {
     return MatrixXfR();
   }

@@ -649,35 +649,36 @@ void ApparelDynamicsNetImpl::widen_from(ApparelDynamicsNetImpl& source) {
             "apparel module: widen: expected a module without physics inputs and one alike with them");
   torch::NoGradGuard no_grad;
   const int64_t C = source.channels(), extra = channels() - C;
-  const auto params = named_parameters(), from = source.named_parameters();
-  for (const auto& item : params) {
-    const at::Tensor& old = from[item.key()];
-    at::Tensor target = item.value();
-    if (old.sizes() == target.sizes()) {
-      target.copy_(old);
-      continue;
+  // Every tensor of the same shape is copied; the others get the new channels by `widen(key, old, target)`.
+  const auto copy = [](const torch::OrderedDict<std::string, at::Tensor>& to,
+                       const torch::OrderedDict<std::string, at::Tensor>& from, const auto& widen) {
+    for (const auto& item : to) {
+      const at::Tensor& old = from[item.key()];
+      at::Tensor target = item.value();
+      if (old.sizes() == target.sizes()) {
+        target.copy_(old);
+      } else {
+        widen(item.key(), old, target);
+      }
     }
-    // The first block's edge layer (C_out, 2 C) = [W1 | W2] on [h_i, h_j - h_i]: new columns after each half.
-    AMT_CHECK(item.key() == "edge_conv0.edge.weight" && old.dim() == 2 && old.size(1) == 2 * C,
-              "apparel module: widen: unexpected shape of ", item.key());
-    target.zero_();
-    target.narrow(1, 0, C).copy_(old.narrow(1, 0, C));
-    target.narrow(1, C + extra, C).copy_(old.narrow(1, C, C));
-  }
-  const auto buffers = named_buffers(), old_buffers = source.named_buffers();
-  for (const auto& item : buffers) {
-    const at::Tensor& old = old_buffers[item.key()];
-    at::Tensor target = item.value();
-    if (old.sizes() == target.sizes()) {
-      target.copy_(old);
-      continue;
-    }
+  };
+  // The first block's edge layer (C_out, 2 C) = [W1 | W2] on [h_i, h_j - h_i]: zero columns after each half.
+  copy(named_parameters(), source.named_parameters(),
+       [&](const std::string& key, const at::Tensor& old, at::Tensor& target) {
+         AMT_CHECK(key == "edge_conv0.edge.weight" && old.dim() == 2 && old.size(1) == 2 * C,
+                   "apparel module: widen: unexpected shape of ", key);
+         target.zero_();
+         target.narrow(1, 0, C).copy_(old.narrow(1, 0, C));
+         target.narrow(1, C + extra, C).copy_(old.narrow(1, C, C));
+       });
+  // The input normaliser: the new channels at mean 0, scale 1.
+  copy(named_buffers(), source.named_buffers(), [&](const std::string& key, const at::Tensor& old, at::Tensor& target) {
     AMT_CHECK(old.dim() == 1 && target.dim() == 1 && target.size(0) == C + extra && old.size(0) == C,
-              "apparel module: widen: unexpected shape of ", item.key());
-    const bool is_scale = item.key().size() >= 5 && item.key().compare(item.key().size() - 5, 5, "scale") == 0;
+              "apparel module: widen: unexpected shape of ", key);
+    const bool is_scale = key.size() >= 5 && key.compare(key.size() - 5, 5, "scale") == 0;
     target.fill_(is_scale ? 1.0 : 0.0);
     target.narrow(0, 0, C).copy_(old);
-  }
+  });
 }
 
 bool ApparelDynamicsNetImpl::normalizers_frozen() const {

@@ -98,4 +98,12 @@ at::Tensor follow_handles(const at::Tensor& A_h, const at::Tensor& S_h, const at
   return S + (gathered.view(shape) * w).sum(-2);
 }
 
+at::Tensor apparel_response(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                            const MatrixXfR& weights, const MatrixXfR& bone_response, const at::Tensor& apparel_ids) {
+  const at::Tensor ids = apparel_ids.to(at::kLong).contiguous();
+  const std::vector<int32_t> list(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + ids.numel());
+  const MatrixXfR r = vertex_response(indices, weights, bone_response, list);
+  return at::from_blob(const_cast<float*>(r.data()), {r.rows(), r.cols()}, at::kFloat).clone();
+}
+
 }  // namespace amt

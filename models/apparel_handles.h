@@ -37,6 +37,12 @@ ApparelRig apparel_rig(const at::Tensor& V, const at::Tensor& edges, const at::T
 /// (bone_handles: a handle per bone, at the vertex it weighs most; the vertices' own skin weights).
 ApparelRig bone_rig(const at::Tensor& V, const at::Tensor& apparel_ids, const ApparelBones& bones, int max_handles = 4);
 
+/// ApparelGraph::response of the apparel vertices apparel_ids ((N_a) int64 mesh indices): vertex_response of
+/// their skin (indices, weights (N, K)) on bones whose response is bone_response (B, kRigResponseChannels), as an
+/// (N_a, kApparelResponseChannels) float tensor.
+at::Tensor apparel_response(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
+                            const MatrixXfR& weights, const MatrixXfR& bone_response, const at::Tensor& apparel_ids);
+
 /// The module's graph over the handles: the rows of the per-vertex graph g at the handles, the
 /// neighbour table of the rig's edges, and ancestors mapped to each ancestor vertex's nearest handle.
 ApparelGraph handle_graph(const ApparelGraph& g, const ApparelRig& rig);

@@ -116,12 +116,8 @@ void set_apparel_graph(BoundCharacter& c, const ApparelBones* bones) {
   c.apparel_contact_weights = g.contact_weights;
   c.apparel_ancestors = g.ancestors;
   c.apparel_response = at::Tensor();
-  if (bones && bones->response.rows() > 0 && bones->indices.rows() == c.num_vertices()) {
-    const at::Tensor ids = c.apparel_ids.contiguous();
-    const std::vector<int32_t> list(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + ids.numel());
-    const MatrixXfR r = vertex_response(bones->indices, bones->weights, bones->response, list);
-    c.apparel_response = at::from_blob(const_cast<float*>(r.data()), {r.rows(), r.cols()}, at::kFloat).clone();
-  }
+  if (bones && bones->response.rows() > 0 && bones->indices.rows() == c.num_vertices())
+    c.apparel_response = apparel_response(bones->indices, bones->weights, bones->response, c.apparel_ids);
 }
 
 }  // namespace

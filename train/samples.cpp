@@ -19,6 +19,7 @@
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/segmentation_features.h"
 #include "models/apparel_displacement.h"
+#include "models/apparel_handles.h"
 #include "models/edge_conv.h"
 
 namespace amt {
@@ -303,10 +304,8 @@ std::shared_ptr<const CharacterTensors> SampleSource::load_character(int index, 
                                      t->joints, t->apparel_neighbors, anchor_body_weights);
     if (data.rig && data.rig->response.rows() > 0 && t->apparel_ids.size(0) > 0) {
       // How lively the character's own physics is (the module's response inputs; unknown without it).
-      const at::Tensor ids = t->apparel_ids.contiguous();
-      const std::vector<int32_t> list(ids.data_ptr<int64_t>(), ids.data_ptr<int64_t>() + ids.numel());
-      const MatrixXfR r = vertex_response(data.rig->skin_indices, data.rig->skin_weights, data.rig->response, list);
-      t->apparel_graph.response = float_tensor(r.data(), {r.rows(), r.cols()});
+      t->apparel_graph.response =
+          apparel_response(data.rig->skin_indices, data.rig->skin_weights, data.rig->response, t->apparel_ids);
     }
     t->apparel_node_ids = t->apparel_ids;
     t->apparel_node_edges = t->apparel_edges;

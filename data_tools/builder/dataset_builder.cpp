@@ -22,7 +22,6 @@
 #include "data_tools/builder/apparel_simulation.h"
 #include "data_tools/builder/body_generator.h"
 #include "data_tools/builder/pmx_dataset.h"
-#include "data_tools/builder/pmx_physics.h"
 #include "data_tools/builder/rig_response.h"
 #include "data_tools/formats/atomic_file.h"
 #include "data_tools/formats/dataset_file.h"
@@ -414,16 +413,19 @@ std::vector<MotionClip> motion_library_of(const DatasetBuildOptions& o, uint64_t
   return build_motion_library(library);
 }
 
+// The world settings of a generated character's clips (metres).
+PhysicsSettings clip_physics_settings(const DatasetBuildOptions& o) {
+  PhysicsSettings physics;
+  physics.fixed_step = o.physics_step;
+  physics.solver_iterations = o.solver_iterations;
+  physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(1.0 / o.fps / o.physics_step)));
+  return physics;
+}
+
 Transforms simulate_clip(const DressedCharacter& dressed, const Transforms& joints, int frames,
                          const DatasetBuildOptions& o, std::unique_ptr<ApparelSimulator>& simulator) {
   const double dt = 1.0 / o.fps;
-  if (!simulator) {
-    PhysicsSettings physics;
-    physics.fixed_step = o.physics_step;
-    physics.solver_iterations = o.solver_iterations;
-    physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(dt / o.physics_step)));
-    simulator = std::make_unique<ApparelSimulator>(dressed, physics);
-  }
+  if (!simulator) simulator = std::make_unique<ApparelSimulator>(dressed, clip_physics_settings(o));
   const int J = kCanonicalJointCount;
   auto pose = [&](int t) {
     return Transforms(joints.begin() + static_cast<ptrdiff_t>(t) * J,
@@ -786,11 +788,9 @@ DatasetBuildReport build_dataset(const DatasetBuildOptions& o) {
         CharacterData data = pmx ? pmx_dataset_character(*pmx, planned.name, planned.split).data
                                  : dressed->character_data(planned.name, planned.split);
         // How lively the character's apparel physics is, on the same world settings as its clips.
-        PhysicsSettings physics = pmx ? pmx_physics_settings() : PhysicsSettings();
-        physics.fixed_step = o.physics_step;
-        physics.solver_iterations = o.solver_iterations;
-        physics.max_substeps = std::max(physics.max_substeps, static_cast<int>(std::ceil(1.0 / 30.0 / o.physics_step)));
-        data.rig->response = rig_response(pmx ? pmx->physics : dressed->rig, physics, pmx ? pmx->scale : 1.0f);
+        data.rig->response =
+            pmx ? rig_response(pmx->physics, pmx_simulation_settings(pmx_options, planned.name), pmx->scale)
+                : rig_response(dressed->rig, clip_physics_settings(o), 1.0f);
         writer->add_character(data);
       }
       const int B = pmx ? pmx->num_bones() : dressed->rig.num_bones(), J = kCanonicalJointCount;

@@ -232,8 +232,6 @@ Transforms pmx_bone_pose(const PmxCharacter& c, const Transforms& canonical) {
 
 // === Simulation
 
-namespace {
-
 PhysicsSettings pmx_simulation_settings(const PmxSimulationOptions& o, const std::string& source) {
   AMT_CHECK(std::isfinite(o.fps) && o.fps > 0, source, ": simulation: fps: expected > 0, found ", o.fps);
   AMT_CHECK(std::isfinite(o.physics_step) && o.physics_step > 0, source,
@@ -248,8 +246,6 @@ PhysicsSettings pmx_simulation_settings(const PmxSimulationOptions& o, const std
   s.max_substeps = std::max(s.max_substeps, static_cast<int>(std::ceil(1.0 / o.fps / o.physics_step)));
   return s;
 }
-
-}  // namespace
 
 PmxRigSimulator::PmxRigSimulator(const PmxCharacter& c, const PmxSimulationOptions& options)
     : character_(&c), options_(options), world_(c.physics, pmx_simulation_settings(options, c.source)) {

@@ -144,6 +144,10 @@ struct PmxSimulationOptions {
   float settle_seconds = 1.0f;
 };
 
+/// The world settings of a simulation with options `o` (PMX units); throws amt::Error naming `source` and the field
+/// for an option out of range.
+PhysicsSettings pmx_simulation_settings(const PmxSimulationOptions& o, const std::string& source);
+
 /// The character's Bullet world driven by canonical poses. Deterministic: start() rebuilds the world, so a clip does
 /// not depend on what was simulated before (one per thread). Not copyable; movable.
 class PmxRigSimulator {

@@ -382,14 +382,13 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
                             int max_handles) {
   const int B = bones.num_bones(), N_a = static_cast<int>(apparel.size());
   AMT_CHECK(max_handles >= 1, "bone handles: max_handles: expected at least 1, found ", max_handles);
-  AMT_CHECK(bones.heads.rows() == B && static_cast<int>(bones.parents.size()) == B, "bone handles: expected ", B,
-            " heads and parents, found ", bones.heads.rows(), " and ", bones.parents.size());
+  AMT_CHECK(bones.heads.rows() == B && static_cast<int>(bones.parents.size()) == B,
+            "bone handles: expected ", B, " heads and parents, found ", bones.heads.rows(), " and ", bones.parents.size());
   AMT_CHECK(bones.indices.rows() == V.rows() && bones.weights.rows() == V.rows() &&
                 bones.indices.cols() == bones.weights.cols(),
             "bone handles: expected skin indices and weights of ", V.rows(), " vertices, found ", bones.indices.rows(),
             " and ", bones.weights.rows());
-  for (const int32_t v : apparel)
-    AMT_CHECK(v >= 0 && v < V.rows(), "bone handles: apparel vertex ", v, " out of range");
+  for (const int32_t v : apparel) AMT_CHECK(v >= 0 && v < V.rows(), "bone handles: apparel vertex ", v, " out of range");
   // Each bone's heaviest apparel vertices, heaviest first, then nearest its head.
   struct Candidate {
     float weight, distance;
@@ -444,10 +443,8 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
       if (b < 0 || b >= B || !(bones.weights(v, k) > 0.0f)) continue;
       const int h = handle_of_bone[b];
       auto it = std::find_if(w.begin(), w.end(), [h](const auto& e) { return e.second == h; });
-      if (it == w.end())
-        w.push_back({bones.weights(v, k), h});
-      else
-        it->first += bones.weights(v, k);
+      if (it == w.end()) w.push_back({bones.weights(v, k), h});
+      else it->first += bones.weights(v, k);
     }
     if (w.empty()) {  // outside the rig's apparel: the nearest handle at rest
       int best = 0;
@@ -487,8 +484,7 @@ ApparelHandles bone_handles(const MatrixX3f& V, const std::vector<int32_t>& appa
   edges.erase(std::remove_if(edges.begin(), edges.end(), [](const auto& e) { return e.first == e.second; }),
               edges.end());
   out.handle_edges.resize(static_cast<Eigen::Index>(edges.size()), 2);
-  for (size_t e = 0; e < edges.size(); ++e)
-    out.handle_edges.row(static_cast<Eigen::Index>(e)) << edges[e].first, edges[e].second;
+  for (size_t e = 0; e < edges.size(); ++e) out.handle_edges.row(static_cast<Eigen::Index>(e)) << edges[e].first, edges[e].second;
   return out;
 }
 

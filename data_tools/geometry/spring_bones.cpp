@@ -209,11 +209,10 @@ Transforms SpringBoneSimulator::advance(const Transforms& pose, double seconds) 
 }
 
 MatrixXfR spring_response(const Skeleton& skeleton, const SpringRig& rig, const RigProbeOptions& probe) {
-  validate_spring_rig(rig, skeleton, "spring bones");
+  SpringBoneSimulator simulator(skeleton, rig);  // validates the rig
   const int J = skeleton.num_joints();
   std::vector<uint8_t> simulated(static_cast<size_t>(J), 0);
   for (const SpringJoint& s : rig.joints) simulated[static_cast<size_t>(s.joint)] = 1;
-  SpringBoneSimulator simulator(skeleton, rig);
   simulator.reset(Transforms(static_cast<size_t>(J), Transform34::Identity()));
   return probe_response(skeleton.rest_joints, skeleton.parents, simulated, probe.amplitude_metres, probe,
                         [&](const Transforms& pose, float seconds) { return simulator.advance(pose, seconds); });
