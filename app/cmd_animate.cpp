@@ -99,7 +99,17 @@ void add_animate_command(CLI::App& app) {
                   "(a few projections per frame, apparel vertices only; 0: off)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
       ->capture_default_str();
+  cmd->add_option("--swing-calibration", o->swing_calibration,
+                  "auto: scale the learned apparel's swing, per piece, to the character's own physics when its rig "
+                  "can be probed (a PMX model's rigid bodies, a VRM avatar's spring bones, a dataset's rig); off: the "
+                  "apparel module as trained")
+      ->check(CLI::IsMember({"auto", "off"}))
+      ->capture_default_str();
   cmd->add_flag("--no-resolve-penetration", *no_resolve, "Do not push apparel out of the body");
+  cmd->add_flag_callback(
+      "--push-rest-penetration", [o] { o->penetration.keep_rest_penetration = false; },
+      "Also push out apparel that is inside the body at rest (by default it stays where the model has it: hair "
+      "roots in the scalp, a hem under a collar)");
   cmd->add_option("--penetration-margin", o->penetration.margin,
                   "Distance outside the body a pushed vertex ends at, metres")
       ->check(CLI::Range(0.0, 0.1))

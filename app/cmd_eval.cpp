@@ -2,6 +2,7 @@
 // and clips and writes <out>/report.md, <out>/metrics.json and PNG plots (eval/evaluate.h,
 // eval/report.h).
 #include <iostream>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -212,6 +213,11 @@ void add_eval_command(CLI::App& app) {
                    "Largest stretch of an apparel edge over its rest length that the learned apparel's output is "
                    "limited to (0: off, the apparel module's raw output)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
+      ->capture_default_str();
+  eval->add_option("--swing-calibration", o.calibrate_swing,
+                   "Scale the learned apparel's swing, per piece, to the character's own physics when its rig "
+                   "carries a physics response (on) or run the apparel module as trained (off)")
+      ->transform(CLI::IsMember(std::map<std::string, bool>{{"on", true}, {"off", false}}))
       ->capture_default_str();
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");

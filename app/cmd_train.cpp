@@ -2,6 +2,7 @@
 // shards (train/trainer.h), writing <out>/<module>.ckpt and <out>/<module>.csv, and prints the step
 // time and throughput of each run. With --world-size N (or torchrun's WORLD_SIZE), the process is one
 // rank of a data-parallel run (train/distributed.h).
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iomanip>
@@ -14,6 +15,8 @@
 #include "app/commands.h"
 #include "data_tools/geometry/error.h"
 #include "models/module_options.h"
+#include "models/pipeline.h"
+#include "train/samples.h"
 #include "train/trainer.h"
 
 namespace amt::app {
@@ -86,6 +89,23 @@ void run(const TrainCommand& command) {
               command.module, "'");
     options.networks.skinning.variant = parse_skinning_variant(command.variant, "--variant");
   }
+  if (command.module == "swing_reference") {
+    // Measures the training data's least lively apparel physics and stores it in the model's local apparel modules.
+    const double reference = measure_swing_reference(resolve_shards(command.data));
+    AMT_CHECK(reference > 0,
+              "--data: no training character's rig carries a physics response (rebuild the data with "
+              "this amt: amt dataset build writes /characters/<name>/rig/response)");
+    const auto out = std::filesystem::path(options.out_dir);
+    AMT_CHECK(std::filesystem::is_regular_file(out / kApparelCheckpoint), (out / kApparelCheckpoint).string(),
+              ": no such checkpoint (--out is the model folder whose apparel module is calibrated)");
+    for (const char* name : {kApparelCheckpoint, kApparelOwnWeightsCheckpoint}) {
+      const std::string path = (out / name).string();
+      if (!std::filesystem::is_regular_file(path)) continue;
+      const double before = set_swing_reference(path, reference);
+      std::printf("%s: swing_reference %.4f (was %.4f)\n", path.c_str(), reference, before);
+    }
+    return;
+  }
   if (command.module == "apparel_refiner") {
     report(train_apparel_refiner(command.data, options));
     return;
@@ -120,10 +140,12 @@ void add_train_command(CLI::App& app) {
   train
       ->add_option("MODULE", command->module,
                    "segmenter, skinning, apparel, refiner, apparel_refiner (the global apparel form and the refiner "
-                   "end to end), or all (segmenter, skinning, then apparel and refiner, or apparel_refiner for the "
-                   "global form)")
+                   "end to end), all (segmenter, skinning, then apparel and refiner, or apparel_refiner for the "
+                   "global form), or swing_reference (no training: measures the least lively apparel physics of "
+                   "the --data and stores it in the apparel modules of the model folder --out)")
       ->required()
-      ->check(CLI::IsMember({"segmenter", "skinning", "apparel", "refiner", "apparel_refiner", "all"}));
+      ->check(
+          CLI::IsMember({"segmenter", "skinning", "apparel", "refiner", "apparel_refiner", "all", "swing_reference"}));
   train->add_option("--data", command->data, "Dataset shards: *.h5 files or folders of them")->required();
   train->add_option("--out", o.out_dir, "Output folder for <module>.ckpt and <module>.csv")->required();
   train->add_option("--steps", o.steps, "Step to stop at (a resumed run continues up to it)")->capture_default_str();

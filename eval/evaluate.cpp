@@ -416,8 +416,9 @@ class ClipScorer {
   std::pair<double, double>* amplitude_ = nullptr;
 };
 
-BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
+BindOptions bind_options_for(const std::string& bind, const CharacterCache& c, bool calibrate_swing) {
   BindOptions o;
+  o.calibrate_swing = calibrate_swing;
   if (bind == "gt_weights") {
     o.apparel_mask = c.gt_mask;
     o.weights = c.gt_weights;
@@ -425,6 +426,7 @@ BindOptions bind_options_for(const std::string& bind, const CharacterCache& c) {
     o.physics_bones = c.physics;
   } else if (bind == "predicted") {
     o.all_vertex_weights = true;
+    o.physics_bones = c.physics;
   } else {
     o.apparel_mask = c.gt_mask;
     o.apparel_bones = c.bones;
@@ -897,7 +899,10 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
       if (tiled_from_full && m.key == tiled_spec->key) continue;  // scored from the full model's steps
       auto bound = c.binds.find(m.bind);
       if (bound == c.binds.end())
-        bound = c.binds.emplace(m.bind, bind_character(bundle, c.V, c.F, c.joints, bind_options_for(m.bind, c))).first;
+        bound = c.binds
+                    .emplace(m.bind, bind_character(bundle, c.V, c.F, c.joints,
+                                                    bind_options_for(m.bind, c, options.calibrate_swing)))
+                    .first;
       const BoundCharacter& b = bound->second;
       if (m.bind == "predicted" && !c.segmentation) {
         c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
@@ -1131,7 +1136,8 @@ std::string evaluation_json(const EvaluationResult& result) {
                   {"penetration", result.options.penetration},
                   {"lead_in_frames", kDefaultLeadInFrames},
                   {"artist_style", result.options.artist_style},
-                  {"rig_handles", result.options.rig_handles}};
+                  {"rig_handles", result.options.rig_handles},
+                  {"swing_calibration", result.options.calibrate_swing}};
   if (result.options.artist_style) {
     const ArtistStyleOptions& a = result.options.artist_style_options;
     j["artist_style"] = {{"subset", kHeldOutArtistStyle},
@@ -1311,7 +1317,8 @@ ViewedClip view_clip(const ModelBundle& bundle, const EvaluationResult& result, 
   const at::Tensor skinned = linear_blend_skinning(c->V, c->gt_weights, motion, c->joints).contiguous();
   for (int64_t t = 0; t < T; ++t) v.skinning.push_back(to_matrix(skinned[t]));
   // The full model's rollout, as evaluate_model runs it.
-  const BoundCharacter b = bind_character(bundle, c->V, c->F, c->joints, bind_options_for("predicted", *c));
+  const BoundCharacter b =
+      bind_character(bundle, c->V, c->F, c->joints, bind_options_for("predicted", *c, result.options.calibrate_swing));
   PipelineStepper stepper(bundle, b, rest_apparel_history(b), PipelineStages::kFull, ApparelSource::kNetwork, 0.0);
   stepper.set_strain_limit(result.options.strain_limit);
   const at::Tensor lead_in = motion_lead_in(motion[0], c->joints, kDefaultLeadInFrames);

@@ -81,6 +81,9 @@ struct EvaluateOptions {
   /// The learned apparel's stretch limit in every method that runs the apparel module
   /// (PipelineStepper::set_strain_limit; 0: off, the module's raw output).
   float strain_limit = kDefaultStrainLimit;
+  /// Calibrate the learned apparel's swing on each character's own physics when its rig carries a response
+  /// (BindOptions::calibrate_swing, swing_calibration in models/pipeline.h).
+  bool calibrate_swing = true;
   /// evaluate_predictions: also score a file without the mark of predictions (ground truth, e.g. a dataset
   /// rebuilt with other physics scored against the original); refused otherwise, as it would score perfect.
   bool ground_truth_as_predictions = false;

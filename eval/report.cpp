@@ -366,6 +366,12 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
                                                "(`--strain-limit`)"
                                          : std::string("off (`--strain-limit 0`): the apparel module's raw output"))
      << "\n";
+  md << "- Apparel swing: "
+     << (result.options.calibrate_swing
+             ? std::string("calibrated on each character's own physics where its rig carries a response and the "
+                           "apparel module knows its training data's least lively apparel (`--swing-calibration on`)")
+             : std::string("the apparel module as trained (`--swing-calibration off`)"))
+     << "\n";
   md << "- Wall time: " << fixed(result.seconds, 1) << " s\n\n";
   md << "Metrics: PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "
         "averaged over vertices, then frames, then clips; ELS = mean of 1 - | |e_pred| / |e_gt| - 1 | over edges "

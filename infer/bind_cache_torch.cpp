@@ -41,6 +41,7 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"apparel_contact_weights", &BoundCharacter::apparel_contact_weights},
           {"apparel_ancestors", &BoundCharacter::apparel_ancestors},
           {"apparel_response", &BoundCharacter::apparel_response},
+          {"apparel_swing_gain", &BoundCharacter::apparel_swing_gain},
           {"vertex_weights", &BoundCharacter::vertex_weights},
           {"graph_edges", &BoundCharacter::graph_edges},
           {"topology_counts", &BoundCharacter::topology_counts},

@@ -20,9 +20,9 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 7;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
+inline constexpr int64_t kBindVersion = 8;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
                                             // 6: the linked topology and the handles; 7: the apparel
-                                            // bones' physics response
+                                            // bones' physics response; 8: the swing calibration
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;

@@ -145,6 +145,26 @@ std::string physics_source(const ApparelBones* bones, const BoundCharacter& boun
   return text;
 }
 
+// How far the learned apparel swings (AnimateSummary::swing_source).
+std::string swing_source(const BoundCharacter& bound, bool physics_known, const std::string& calibration,
+                         double reference) {
+  if (calibration == "off") return "as trained (--swing-calibration off)";
+  if (reference <= 0)
+    return "as trained (--swing-calibration auto: the apparel module does not know the least lively apparel it "
+           "trained on; amt train swing_reference stores it)";
+  if (!physics_known || !bound.apparel_swing_gain.defined() || bound.apparel_swing_gain.numel() == 0)
+    return "as trained (--swing-calibration auto: the character's physics is unknown; calibrated on a PMX model's "
+           "rigid bodies, a VRM avatar's spring bones or a dataset's rig)";
+  const at::Tensor g = bound.apparel_swing_gain.to(at::kFloat);
+  const at::Tensor calmed = g.lt(0.999f);
+  char text[240];
+  std::snprintf(text, sizeof(text),
+                "calibrated on the rig's own physics (--swing-calibration auto): %.0f %% of the apparel calmed, gain "
+                "median %.2f, lowest %.2f",
+                100.0 * calmed.to(at::kFloat).mean().item<double>(), g.median().item<double>(), g.min().item<double>());
+  return text;
+}
+
 // The first row of `P` (n, 3) that is non-finite or farther than `bound` from `root`, or -1.
 int64_t first_exploded(const float* P, int64_t n, const Eigen::Vector3f& root, float bound) {
   for (int64_t i = 0; i < n; ++i) {
@@ -703,12 +723,16 @@ AnimateSummary animate(const AnimateOptions& o) {
   const SourceMotion source = load_motion(o.motion);
   const ModelBundle bundle = load_model_bundle(o.model_dir);
   check_bundle_skeleton(bundle, character.skeleton.names, o.model_dir);
-  // The rig's physics response, measured only for an apparel module that reads it.
+  // The rig's physics response, measured only for an apparel module that reads it or whose swing it calibrates.
+  AMT_CHECK(o.swing_calibration == "auto" || o.swing_calibration == "off",
+            "--swing-calibration: expected auto or off, found '", o.swing_calibration, "'");
+  const bool calibrate = bundle.local_apparel() && o.swing_calibration == "auto";
   const bool reads_response =
       bundle.local_apparel() &&
       (bundle.apparel_dynamics->options.response ||
        (!bundle.apparel_dynamics_own_weights.is_empty() && bundle.apparel_dynamics_own_weights->options.response));
-  if (reads_response && character.rig_bones_with_response) character.rig_bones = character.rig_bones_with_response();
+  if ((reads_response || calibrate) && character.rig_bones_with_response)
+    character.rig_bones = character.rig_bones_with_response();
   std::vector<uint8_t> mask_override;
   s.apparel_source = "the segmenter";
   const bool use_rig = o.apparel_mask == "rig" ||
@@ -796,8 +820,13 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.bind_path = o.bind_path.empty()     ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
-  const BindResult bind = bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override,
-                                      s.bind_path, bones, own_weights, character.rig_bones);
+  const bool physics_known = character.rig_bones && character.rig_bones->response.rows() > 0;
+  BindResult bind = bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path,
+                                bones, own_weights, reads_response || calibrate ? character.rig_bones : nullptr);
+  if (!calibrate) bind.bound.apparel_swing_gain = at::Tensor();
+  if (bundle.local_apparel())
+    s.swing_source = swing_source(bind.bound, physics_known, o.swing_calibration,
+                                  bundle.apparel_dynamics_for(bind.bound.given_weights)->options.swing_reference);
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
   s.hung = bind.bound.hung;
@@ -869,7 +898,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     s.before.depth_sum_cm += report.before.depth_sum_cm;
     s.after.inside += report.after.inside, s.after.total += report.after.total;
     s.after.depth_sum_cm += report.after.depth_sum_cm;
-    s.carried += report.carried;
+    s.carried += report.carried, s.tucked += report.tucked;
     ++s.apparel_steps;
     if (!resample) return;
     MatrixX3f skinned_step;
@@ -974,6 +1003,7 @@ std::string describe(const AnimateSummary& s) {
   }
   if (!s.weights_source.empty()) out << "skinning weights: " << s.weights_source << "\n";
   if (!s.physics_source.empty()) out << "apparel physics: " << s.physics_source << "\n";
+  if (!s.swing_source.empty()) out << "apparel swing: " << s.swing_source << "\n";
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
     std::snprintf(line, sizeof(line),
@@ -997,8 +1027,10 @@ std::string describe(const AnimateSummary& s) {
   out << line;
   std::snprintf(line, sizeof(line),
                 "penetration share: %.2f %% of apparel vertices before, %.2f %% after (mean depth %.2f cm before; "
-                "%.0f %% of inside tests carried over from the previous frame)\n",
+                "%.2f %% inside at rest too, left where the model has them; %.0f %% of inside tests carried over "
+                "from the previous frame)\n",
                 100.0 * s.before.share(), 100.0 * s.after.share(), s.before.mean_depth_cm(),
+                s.before.total > 0 ? 100.0 * double(s.tucked) / double(s.before.total) : 0.0,
                 s.before.total > 0 ? 100.0 * double(s.carried) / double(s.before.total) : 0.0);
   out << line;
   std::snprintf(line, sizeof(line), "total: %.1f s\n", s.total_seconds);

@@ -131,7 +131,16 @@ struct AnimateOptions {
   bool refine = false;
   /// The learned apparel's stretch limit (`--strain-limit`; PipelineStepper::set_strain_limit, 0: off).
   float strain_limit = kDefaultStrainLimit;
-  PenetrationOptions penetration;
+  /// `--swing-calibration`: "auto" (the learned apparel's swing scaled per piece to the character's own physics when
+  /// its rig's response can be measured: swing_calibration, models/pipeline.h) or "off" (the module as trained).
+  std::string swing_calibration = "auto";
+  /// Apparel inside the body at rest stays there (PenetrationOptions::keep_rest_penetration; `--push-rest-penetration`
+  /// turns it off).
+  PenetrationOptions penetration = [] {
+    PenetrationOptions p;
+    p.keep_rest_penetration = true;
+    return p;
+  }();
   /// Print the mapping and a progress line (done/total, frames/s, ETA) on stderr.
   bool verbose = true;
   /// When not empty, a PNG of four output frames (at 20, 40, 60 and 80 % of the clip) side by side,
@@ -166,6 +175,9 @@ struct AnimateSummary {
   /// What the apparel module read as the character's own physics (its response inputs, ApparelGraph::response):
   /// "the rig's ..." or "unknown ..."; empty when the module has no such inputs.
   std::string physics_source;
+  /// How far the learned apparel swings: "as trained ..." or "calibrated on the rig's physics ..."
+  /// (AnimateOptions::swing_calibration); empty without the local apparel module.
+  std::string swing_source;
   /// What moved the apparel: "learned (the apparel module)" or "physics (...: the PMX model's own rigid bodies)".
   std::string apparel;
   /// True for --apparel physics: no bind, no penetration resolution.
@@ -181,6 +193,8 @@ struct AnimateSummary {
   Penetration before, after;
   /// Inside verdicts carried over from the previous frame, summed over frames (PenetrationReport).
   int64_t carried = 0;
+  /// Apparel vertex-frames inside the body now and at rest, left where the model has them (PenetrationReport::tucked).
+  int64_t tucked = 0;
   bool exact_motion = false;
 };
 

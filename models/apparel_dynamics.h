@@ -211,6 +211,12 @@ struct ApparelDynamicsOptions {
   /// has a rig (a PMX model's rigid bodies, a dataset's rig); zeros when it has none. Checkpoints written
   /// before this field existed have none (false).
   bool response = false;
+  /// The least lively apparel physics the module trained on: the rig probe's swing, share x (during + after),
+  /// averaged over each apparel piece, of its training characters' least lively piece (swing_reference,
+  /// models/pipeline.h; `amt train apparel` measures it, `amt train swing_reference` stores it in a trained model).
+  /// A piece whose rig swings less is calmed in proportion (swing_calibration). 0: unknown, no calibration
+  /// (checkpoints written before this field existed).
+  double swing_reference = 0.0;
 };
 
 /// f_d in local coordinates: apparel history, the motion and the anchors of frames t-3..t -> A^(t).

@@ -111,6 +111,10 @@ CheckpointInfo read_info(torch::serialize::InputArchive& archive, const std::str
   info.joint_names = read_names(archive, path, "joint_names", "joint_names");
   c10::IValue crc;
   info.checksummed = archive.try_read("payload_crc32", crc);
+  at::Tensor optimizer_bytes;
+  torch::serialize::InputArchive optimizer_archive;
+  info.has_optimizer =
+      archive.try_read("optimizer_bytes", optimizer_bytes) || archive.try_read("optimizer", optimizer_archive);
   return info;
 }
 

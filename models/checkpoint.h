@@ -61,6 +61,8 @@ struct CheckpointInfo {
   /// Whether the file carries payload_crc32 (the CRC-32 of the options and tensors, checked on every load). Files
   /// written before amt stored it load unverified; save_checkpoint always writes it.
   bool checksummed = false;
+  /// Whether the file holds an optimizer state (a checkpoint that --resume can continue).
+  bool has_optimizer = false;
 };
 
 // === Save and load

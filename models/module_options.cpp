@@ -68,6 +68,7 @@ void visit(ApparelDynamicsOptions& o, Visitor&& v) {
   v("reach_levels", o.reach_levels);
   v("handle_spacing", o.handle_spacing);
   v("response", o.response);
+  v("swing_reference", o.swing_reference);
 }
 
 template <typename Visitor>

@@ -413,6 +413,13 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
     c.handle_edges = rig.edges;
   };
   set_handles();
+  // The learned swing calibrated on the character's own physics (by the module that will move its apparel).
+  const auto calibrate_swing = [&] {
+    if (!options.calibrate_swing || !bundle.local_apparel() || !c.apparel_response.defined() || c.num_apparel() == 0)
+      return;
+    const double reference = bundle.apparel_dynamics_for(c.given_weights)->options.swing_reference;
+    if (reference > 0) c.apparel_swing_gain = swing_calibration(c, reference).gain;
+  };
 
   // Skinning weights (eq. 5-7) of the body, and optionally of every vertex.
   c.given_weights = options.weights.defined();
@@ -425,6 +432,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
                                                                          c.apparel_ids, c.body_ids, c.body_weights),
                                               c.apparel_ids, canon);
     set_apparel_graph(c, options.physics_bones ? options.physics_bones.get() : options.apparel_bones.get());
+    calibrate_swing();
     return c;
   }
   SkinningPredictor skinning = bundle.skinning_for(options.skinning_variant);
@@ -448,6 +456,7 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
     c.vertex_weights = skinning->forward(c.V, c.joints, G_all).contiguous();
     if (c.body_ids.size(0) > 0) c.vertex_weights.index_copy_(0, c.body_ids, c.body_weights);
   }
+  calibrate_swing();
   return c;
 }
 
@@ -544,6 +553,14 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
     c10::InferenceMode inference;
     rig_ = character_.rig();
     handle_graph_ = handle_graph(character_.apparel_graph(), rig_);
+  }
+  if (source_ == ApparelSource::kNetwork && bundle_.local_apparel() && stages_ != PipelineStages::kBodyOnly &&
+      character_.apparel_swing_gain.defined() && character_.num_apparel() > 0) {
+    const at::Tensor& gain = character_.apparel_swing_gain;
+    AMT_CHECK(gain.dim() == 1 && gain.size(0) == character_.num_apparel(), "pipeline: swing gain: expected (",
+              character_.num_apparel(), "), found ", gain.sizes());
+    // Every gain 1: the module's output exactly, not S + 1 (Â - S) rounded.
+    if (gain.lt(1.0f).any().item<bool>()) swing_gain_ = gain.to(at::kFloat).unsqueeze(1).contiguous();
   }
   set_strain_limit(kDefaultStrainLimit);
   reset(history);
@@ -673,6 +690,8 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
       strain_.apply(out.A_hat.data_ptr<float>(), fixed.data_ptr<float>());
     }
     history_ = at::cat({history_.narrow(0, 1, 2), out.A_hat.unsqueeze(0)}, 0);
+    // The module keeps its own state; what it shows swings by the calibrated gain (swing_calibration).
+    if (swing_gain_.defined()) out.A_hat = anchor + swing_gain_ * (out.A_hat - anchor);
   } else {
     out.A_hat = at::zeros({0, 3}, at::kFloat);
   }
@@ -689,6 +708,84 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
 
 at::Tensor PipelineStepper::step(const at::Tensor& joint_transforms, StepTimes* times) {
   return step_detailed(joint_transforms, times).V_hat;
+}
+
+// === Calibrating the swing
+
+SwingCalibration apparel_piece_swing(const at::Tensor& response, const at::Tensor& apparel_edges) {
+  AMT_CHECK(response.defined() && response.dim() == 2 && response.size(1) == kApparelResponseChannels,
+            "swing calibration: response: expected (N_a, ", kApparelResponseChannels, "), found ",
+            (response.defined() ? response.sizes() : at::IntArrayRef{}));
+  const int64_t N_a = response.size(0);
+  AMT_CHECK(apparel_edges.defined() && apparel_edges.dim() == 2 && apparel_edges.size(1) == 2,
+            "swing calibration: apparel edges: expected (E_a, 2)");
+  const at::Tensor E = apparel_edges.to(at::kLong).contiguous();
+  const int64_t* e = E.data_ptr<int64_t>();
+  // Pieces: connected parts of the apparel over the edges (union-find with path halving).
+  std::vector<int64_t> root(static_cast<size_t>(N_a));
+  std::iota(root.begin(), root.end(), int64_t(0));
+  const auto find = [&root](int64_t v) {
+    while (root[size_t(v)] != v) v = root[size_t(v)] = root[size_t(root[size_t(v)])];
+    return v;
+  };
+  for (int64_t k = 0; k < E.size(0); ++k) {
+    AMT_CHECK(e[2 * k] >= 0 && e[2 * k] < N_a && e[2 * k + 1] >= 0 && e[2 * k + 1] < N_a,
+              "swing calibration: apparel edge ", k, " out of range [0, ", N_a, ")");
+    const int64_t a = find(e[2 * k]), b = find(e[2 * k + 1]);
+    if (a != b) root[size_t(std::max(a, b))] = std::min(a, b);
+  }
+  std::vector<int64_t> piece_of(static_cast<size_t>(N_a)), index(static_cast<size_t>(N_a), -1), count;
+  std::vector<double> swing;
+  const at::Tensor r = response.to(at::kFloat).contiguous();
+  const float* rv = r.data_ptr<float>();
+  for (int64_t v = 0; v < N_a; ++v) {
+    int64_t& p = index[size_t(find(v))];
+    if (p < 0) p = int64_t(count.size()), count.push_back(0), swing.push_back(0.0);
+    piece_of[size_t(v)] = p;
+    const float* row = rv + v * kApparelResponseChannels;
+    swing[size_t(p)] += double(row[0]) * (double(row[1]) + double(row[2]));
+    ++count[size_t(p)];
+  }
+  SwingCalibration out;
+  out.piece_of = at::tensor(piece_of, at::kLong);
+  out.piece_vertices = at::tensor(count, at::kLong);
+  out.piece_swing = at::empty({int64_t(count.size())}, at::kFloat);
+  for (size_t p = 0; p < count.size(); ++p) out.piece_swing[int64_t(p)] = float(swing[p] / double(count[p]));
+  return out;
+}
+
+SwingCalibration swing_calibration(const BoundCharacter& character, double swing_reference) {
+  AMT_CHECK(character.apparel_response.defined() && character.apparel_response.size(0) == character.num_apparel(),
+            "swing calibration: the character's physics response is unknown");
+  AMT_CHECK(std::isfinite(swing_reference) && swing_reference > 0, "swing calibration: reference: expected > 0, found ",
+            swing_reference);
+  SwingCalibration out = apparel_piece_swing(character.apparel_response, character.apparel_edges);
+  out.piece_gain = (out.piece_swing / swing_reference).clamp(0.0, 1.0);
+  out.gain = out.piece_gain.index_select(0, out.piece_of);
+  return out;
+}
+
+double swing_reference(const std::vector<SwingCalibration>& characters, double quantile) {
+  AMT_CHECK(quantile >= 0 && quantile < 1, "swing reference: quantile: expected in [0, 1), found ", quantile);
+  std::vector<std::pair<float, int64_t>> pieces;  // (swing, vertices)
+  int64_t total = 0;
+  for (const SwingCalibration& c : characters) {
+    if (!c.piece_swing.defined()) continue;
+    for (int64_t p = 0; p < c.piece_swing.size(0); ++p) {
+      pieces.emplace_back(c.piece_swing[p].item<float>(), c.piece_vertices[p].item<int64_t>());
+      total += pieces.back().second;
+    }
+  }
+  if (pieces.empty() || total == 0) return 0.0;
+  std::sort(pieces.begin(), pieces.end());
+  // The smallest swing whose pieces, with all below it, hold at least `quantile` of the vertices (quantile 0: the
+  // least lively piece).
+  int64_t below = 0;
+  for (const auto& [swing, vertices] : pieces) {
+    below += vertices;
+    if (vertices > 0 && double(below) >= quantile * double(total)) return double(swing);
+  }
+  return double(pieces.back().first);
 }
 
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

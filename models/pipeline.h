@@ -122,6 +122,10 @@ struct BindOptions {
   /// module's response inputs (BoundCharacter::apparel_response), whichever handles it moves; null: taken
   /// from apparel_bones; neither (or no response): unknown.
   std::shared_ptr<const ApparelBones> physics_bones;
+  /// Calibrate the learned apparel's swing on the character's own physics (swing_calibration) when its response is
+  /// known (BoundCharacter::apparel_response) and the local module that moves it has a swing_reference; false: the
+  /// module as trained.
+  bool calibrate_swing = true;
 };
 
 /// What the linked topology of a bound character found (BoundCharacter::topology_counts).
@@ -181,6 +185,9 @@ struct BoundCharacter {
   /// Its physics inputs (ApparelGraph::response (N_a, 3) float) from the apparel bones' response
   /// (BindOptions::apparel_bones with ApparelBones::response); undefined when unknown.
   at::Tensor apparel_response;
+  /// (N_a) float: the gain on the learned apparel's swing away from its anchor, per apparel vertex
+  /// (swing_calibration; BindOptions::calibrate_swing); undefined: none (the module as trained).
+  at::Tensor apparel_swing_gain;
   /// vertex_weights (N, J) float weights of every vertex (BindOptions::all_vertex_weights or
   /// BindOptions::weights); undefined otherwise.
   at::Tensor vertex_weights;
@@ -367,7 +374,49 @@ class PipelineStepper {
   at::Tensor handle_history_, handle_history_anchors_;
   // The learned apparel's stretch limit over the apparel (free) and body (fixed) vertices; empty: off.
   StrainLimiter strain_;
+  // (N_a, 1) the swing gain of the character (BoundCharacter::apparel_swing_gain) for the local module; undefined:
+  // none.
+  at::Tensor swing_gain_;
 };
+
+// === Calibrating the swing on the character's own physics
+
+/// The learned apparel on a rig stiffer than any it trained on: a module that learned the builder's chains swings a
+/// VRM avatar's stiff spring bones, or a PMX model's nearly locked accessories, as if they were loose (on the
+/// Godette avatar 3.2 cm from its own physics, where rigid skinning is 0.56 cm off). When the character's own physics
+/// response is known (BoundCharacter::apparel_response, the rig probe of data_tools/geometry/rig_probe.h) and the
+/// module knows the least lively apparel it trained on (ApparelDynamicsOptions::swing_reference), each apparel piece
+/// whose rig swings less than that is calmed in proportion: per connected part of the apparel over the linked
+/// topology, gain = clamp(mean over its vertices of share x (swing during + after) / swing_reference, 0, 1). The
+/// stepper then outputs S + gain (Â - S) and keeps the module's own Â as its history: the module runs as trained and
+/// only what it shows is scaled; a gain that is the same over a piece cannot tear it. On rigs as lively as the
+/// training data's every gain is 1.
+struct SwingCalibration {
+  /// (N_a) float gain per apparel vertex (BoundCharacter::apparel_swing_gain); undefined from apparel_piece_swing.
+  at::Tensor gain;
+  /// (N_a) int64 each apparel vertex's piece; (P) float per piece: its gain (undefined from apparel_piece_swing) and
+  /// its rig's mean swing over its vertices (share x (during + after), per unit of sway); (P) int64 its vertices.
+  at::Tensor piece_of, piece_gain, piece_swing, piece_vertices;
+};
+
+/// The apparel's pieces and their rigs' swing: response (N_a, kApparelResponseChannels) (ApparelGraph::response),
+/// apparel_edges (E_a, 2) int64 positions in the apparel list (BoundCharacter::apparel_edges: the linked topology).
+/// Throws amt::Error on shapes that do not match.
+SwingCalibration apparel_piece_swing(const at::Tensor& response, const at::Tensor& apparel_edges);
+
+/// The swing calibration of a bound character with the reference `swing_reference` (> 0). Throws amt::Error when the
+/// character's physics response (apparel_response) is undefined or the reference is not positive.
+SwingCalibration swing_calibration(const BoundCharacter& character, double swing_reference);
+
+/// The quantile of the training apparel's swing taken as the least lively the module knows: 0, its least lively
+/// piece. (The 1 % quantile, 0.325 on data/default, calmed a held-out character's pieces whose own rig swings 0.25,
+/// where the module was right, and cost 0.04 cm there: models/pretrained/README.md.)
+inline constexpr double kSwingReferenceQuantile = 0.0;
+
+/// The reference of the calibration from training data: the `quantile` (in [0, 1)) of the pieces' swing
+/// (apparel_piece_swing of each training character), each piece weighted by its vertices; 0 is the least lively
+/// piece's swing. 0 without pieces.
+double swing_reference(const std::vector<SwingCalibration>& characters, double quantile = kSwingReferenceQuantile);
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

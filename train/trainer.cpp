@@ -23,8 +23,11 @@
 #include <type_traits>
 
 #include "data_tools/formats/atomic_file.h"
+#include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/apparel_topology.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
+#include "models/edge_conv.h"
 #include "models/module_options.h"
 #include "models/pipeline.h"
 #include "train/samples.h"
@@ -500,6 +503,7 @@ Task make_task(ModuleKind kind, bool end_to_end, const std::vector<CheckpointInf
         if (o.handle_spacing >= 0 && o.resume.empty()) options.handle_spacing = o.handle_spacing;
         const ApparelDynamicsOptions init_options = options;
         if (o.apparel_response && o.resume.empty()) options.response = true;
+        if (o.swing_reference >= 0 && o.resume.empty()) options.swing_reference = o.swing_reference;
         ApparelDynamicsNet net(options);
         task.parts.push_back(make_part(kind, "apparel", net, options_to_json(net->options)));
         if (info(0) && options.response && !init_options.response) {
@@ -827,6 +831,7 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     };
   }
   const std::vector<std::string> shards = resolve_shards(data);
+  if (local_apparel && o.resume.empty()) o.swing_reference = measure_swing_reference(shards);
   SampleSource source(shards, sampling);
   const std::vector<std::string>& joint_names = source.joint_names();
   if (sampling.anchor_body_weights) {
@@ -1109,6 +1114,54 @@ std::pair<at::Tensor, at::Tensor> add_history_noise(const at::Tensor& history, c
   at::Tensor noisy = history.clone();
   noisy.select(0, 2).add_(noise);
   return {noisy, target + (1.0 - gamma) * noise};
+}
+
+double measure_swing_reference(const std::vector<std::string>& shards) {
+  std::vector<SwingCalibration> characters;
+  for (const std::string& shard : shards) {
+    DatasetReader reader(shard);
+    for (const std::string& name : reader.character_names()) {
+      if (reader.character_summary(name).split != "train") continue;
+      const CharacterData c = reader.read_character(name);
+      if (!c.rig || c.rig->response.rows() == 0) continue;
+      std::vector<int64_t> apparel;
+      for (size_t v = 0; v < c.apparel_mask.size(); ++v)
+        if (c.apparel_mask[v]) apparel.push_back(int64_t(v));
+      if (apparel.empty()) continue;
+      // Pieces as a bind finds them: over the linked topology (seams welded, nearby pieces linked).
+      const at::Tensor ids = at::tensor(apparel, at::kLong);
+      const MatrixX2i linked = linked_topology(c.mesh.V, c.mesh.F, c.apparel_mask).edges;
+      const at::Tensor edges =
+          at::from_blob(const_cast<int32_t*>(linked.data()), {linked.rows(), 2}, at::TensorOptions().dtype(at::kInt))
+              .to(at::kLong);
+      characters.push_back(
+          apparel_piece_swing(apparel_response(c.rig->skin_indices, c.rig->skin_weights, c.rig->response, ids),
+                              induced_edges(c.mesh.num_vertices(), edges, ids)));
+    }
+  }
+  return swing_reference(characters);
+}
+
+double set_swing_reference(const std::string& checkpoint, double reference) {
+  AMT_CHECK(std::isfinite(reference) && reference > 0, checkpoint, ": swing reference: expected > 0, found ",
+            reference);
+  CheckpointInfo info = read_checkpoint_info(checkpoint, ModuleKind::kApparel);
+  AMT_CHECK(is_local_apparel_options(info.options_json), checkpoint,
+            ": options: expected the local apparel module (form \"local\"), found the global form");
+  ApparelDynamicsOptions options;
+  options_from_json(info.options_json, checkpoint, options);
+  ApparelDynamicsNet net(options);
+  // Everything is carried over: the tensors, the training parameters and the optimizer's state (the trainer's AdamW
+  // over the parameters, as --resume loads it), so the rewritten file resumes as the original did.
+  std::vector<at::Tensor> training_parameters;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  if (info.has_optimizer) optimizer = std::make_unique<torch::optim::AdamW>(net->parameters());
+  load_checkpoint(checkpoint, ModuleKind::kApparel, *net, optimizer.get(), &training_parameters);
+  const double before = options.swing_reference;
+  net->options.swing_reference = reference;
+  info.options_json = options_to_json(net->options);
+  save_checkpoint(checkpoint, info, *net, optimizer.get(), training_parameters.empty() ? nullptr : &training_parameters);
+  return before;
 }
 
 TrainResult train_module(ModuleKind kind, const std::vector<std::string>& data, const TrainOptions& options) {

@@ -84,6 +84,9 @@ struct TrainOptions {
   /// The local apparel module's physics inputs (ApparelDynamicsOptions::response) for a fresh run or one started
   /// with --init from a module without them (its first block widened with zero weights: it starts as it was).
   bool apparel_response = false;
+  /// The local apparel module's swing_reference (ApparelDynamicsOptions) for a fresh run or one started with --init:
+  /// measured on the training shards (measure_swing_reference) by run_training; < 0: the options' own.
+  double swing_reference = -1.0;
   /// (run) Local apparel module: "squared" (the squared error of the detail vectors, in units of the
   /// target normaliser's scale) or "distance" (the mean Euclidean distance per vertex and frame in the
   /// same units, PMD's own measure: a window that went far off weighs linearly, not quadratically).
@@ -241,5 +244,16 @@ TrainResult train_module(ModuleKind kind, const std::vector<std::string>& shards
 /// options.apparel_checkpoint (default: apparel.ckpt next to it); both must come from an end-to-end
 /// run and be at the same step.
 TrainResult train_apparel_refiner(const std::vector<std::string>& shards, const TrainOptions& options);
+
+/// The least lively apparel physics of the training characters (split "train") of `shards` whose rig carries a
+/// physics response: swing_reference (models/pipeline.h) over their ground-truth apparel vertices. 0 when none has a
+/// response. Throws amt::Error on a shard that cannot be read.
+double measure_swing_reference(const std::vector<std::string>& shards);
+
+/// Stores `reference` (> 0) as the swing_reference of the local apparel module in `checkpoint`, which is rewritten
+/// (through a temporary, then renamed) with its parameters, buffers, training parameters, optimizer state, step,
+/// config and data fingerprint as they were. Returns the reference it held before. Throws amt::Error for a
+/// checkpoint that is not a local apparel module's.
+double set_swing_reference(const std::string& checkpoint, double reference);
 
 }  // namespace amt

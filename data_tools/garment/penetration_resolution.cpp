@@ -117,6 +117,10 @@ void PenetrationResolver::prepare(const MatrixX3f& V) {
   AMT_CHECK(V.rows() == Eigen::Index(apparel_.size() + body_.size()), "penetration: expected ",
             apparel_.size() + body_.size(), " vertices, found ", V.rows());
   posed_body(V);
+  if (options_.keep_rest_penetration) {
+    classify(V);
+    rest_inside_ = inside_;
+  }
 }
 
 int PenetrationResolver::classify(const MatrixX3f& V) {
@@ -185,6 +189,8 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   std::vector<Eigen::Vector3f> push(size_t(Na), Eigen::Vector3f::Zero());
   std::vector<float> depth(size_t(Na), 0.0f);
   const std::vector<uint8_t>& inside = inside_;
+  // Apparel inside the body at rest stays where the artist put it (keep_rest_penetration): not pushed, not spread to.
+  const auto tucked = [&](int k) { return !rest_inside_.empty() && rest_inside_[size_t(k)]; };
 #pragma omp parallel for schedule(dynamic, 64)
   for (int k = 0; k < Na; ++k) {
     if (!inside[size_t(k)]) continue;
@@ -200,25 +206,36 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     if (!inside[size_t(k)]) continue;
     ++report.before.inside;
     report.before.depth_sum_cm += 100.0 * double(depth[size_t(k)]);
-    ++report.pushed;
+    if (tucked(k)) {
+      ++report.tucked;
+      report.after.inside++, report.after.depth_sum_cm += 100.0 * double(depth[size_t(k)]);
+    } else {
+      ++report.pushed;
+    }
   }
   if (report.pushed == 0) {
     report.after = report.before;
     return report;
   }
-  // Spread: ring r around the pushed vertices takes falloff^r of the mean push of its pushed-or-spread
-  // neighbours of the previous rings (pushed vertices keep their full push).
+  // Tucked vertices take no spread either (ring -2: never a ring of the spread, never moved).
   std::vector<int> ring(size_t(Na), -1);
   std::vector<int> frontier;
   for (int k = 0; k < Na; ++k) {
-    if (inside[size_t(k)]) ring[size_t(k)] = 0, frontier.push_back(k);
+    if (tucked(k)) {
+      ring[size_t(k)] = -2;
+    } else if (inside[size_t(k)]) {
+      ring[size_t(k)] = 0;
+      frontier.push_back(k);
+    }
   }
+  // Spread: ring r around the pushed vertices takes falloff^r of the mean push of its pushed-or-spread
+  // neighbours of the previous rings (pushed vertices keep their full push).
   for (int r = 1; r <= options_.smoothing_rings && !frontier.empty(); ++r) {
     std::vector<int> next;
     for (int k : frontier) {
       for (int n = apparel_adjacency_.offsets[size_t(k)]; n < apparel_adjacency_.offsets[size_t(k) + 1]; ++n) {
         const int m = apparel_adjacency_.neighbors[size_t(n)];
-        if (ring[size_t(m)] < 0) ring[size_t(m)] = r, next.push_back(m);
+        if (ring[size_t(m)] == -1) ring[size_t(m)] = r, next.push_back(m);
       }
     }
     std::sort(next.begin(), next.end());

@@ -53,10 +53,15 @@ namespace amt {
 ///   margin          distance outside the body surface a pushed vertex ends at, metres
 ///   smoothing_rings rings of apparel neighbours around a pushed vertex that follow it, each ring
 ///                   with `falloff` times the previous ring's share of the push (0: no smoothing)
+///   keep_rest_penetration  apparel vertices inside the body on the pose prepare() sees (the rest pose) are left
+///                   where they are: an artist's model tucks hair roots into the scalp and hems under a collar,
+///                   and its own physics keeps them there (no collision between the two); pushing them out moves
+///                   them centimetres off the model. Off for a garment fitted to another body (cloth retargeting).
 struct PenetrationOptions {
   float margin = 0.003f;
   int smoothing_rings = 2;
   float falloff = 0.5f;
+  bool keep_rest_penetration = false;
 };
 
 /// What a frame's resolution did.
@@ -64,9 +69,11 @@ struct PenetrationOptions {
 ///   pushed          vertices moved out of the body; smoothed: neighbours moved with them
 ///   carried         apparel vertices whose inside verdict carried over from the previous frame
 ///                   (no winding-number query; see the file comment)
+///   tucked          apparel vertices inside the body now and at rest, left alone (keep_rest_penetration); they
+///                   count in before and after
 struct PenetrationReport {
   Penetration before, after;
-  int pushed = 0, smoothed = 0, carried = 0;
+  int pushed = 0, smoothed = 0, carried = 0, tucked = 0;
 };
 
 /// Pushes of a vertex in one resolve(): the first, and more while it is still inside (see the file
@@ -85,7 +92,8 @@ class PenetrationResolver {
 
   /// Builds the body's tree on V (#V by 3, metres; the rest pose) and classifies its faces as exposed or
   /// internal there (file comment), ahead of the first frame; without it the first measure() or resolve()
-  /// does this on its frame. Nothing when the tree is already built.
+  /// does this on its frame. With keep_rest_penetration it also records which apparel vertices are inside the
+  /// body on V (rest_inside()). Nothing when the tree is already built.
   void prepare(const MatrixX3f& V);
 
   /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
@@ -107,6 +115,9 @@ class PenetrationResolver {
   /// Per face of the closed body part (num_body_faces(), the fans last): 1 exposed, 0 internal (file
   /// comment); empty until the first pose.
   const std::vector<uint8_t>& exposed_faces() const { return exposed_; }
+  /// Per apparel vertex (ascending mesh order): 1 when it was inside the body on prepare()'s pose and
+  /// keep_rest_penetration leaves it there; empty otherwise.
+  const std::vector<uint8_t>& rest_inside() const { return rest_inside_; }
 
  private:
   // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
@@ -130,6 +141,7 @@ class PenetrationResolver {
   bool closed_body_ = false;             // is_closed_surface(body_faces_): false only without body faces
   MatrixX3f previous_;                   // apparel positions of the last call (empty before the first)
   std::vector<uint8_t> inside_;          // their verdicts
+  std::vector<uint8_t> rest_inside_;     // apparel inside at rest, left alone (keep_rest_penetration); empty: none
   std::vector<int> query_;               // apparel positions whose verdict classify() queried
 };
 

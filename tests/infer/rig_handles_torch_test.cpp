@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "data_tools/formats/pmx_export.h"
 #include "infer/bind_cache_torch.h"
@@ -178,6 +179,44 @@ TEST(RigHandles, AnimateTakesTheRigsBonesWhenAskedAndNamesThemOtherwise) {
   const test::CommandResult bad = run("bones", "auto");
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.err.find("--apparel-handles"), std::string::npos) << bad.err;
+}
+
+// A model whose training data swung more than this rig does calms the learned apparel, and says so.
+TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingData) {
+  const RiggedPmx r = rigged_pmx("rig_handles_swing");
+  const std::string motion = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
+  const auto run = [&](const std::string& out, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {
+        "animate", "--character", "humanoid.pmx", "--motion", motion,   "--model", "model", "--frames", "4",
+        "--out",   out,           "--threads",    "1",        "--bind", "none"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return test::run_command("cd '" + r.dir.string() + "' && " + test::shell_command(AMT_BINARY, args));
+  };
+  // The fresh model does not know its training data's reference: the module runs as trained.
+  const test::CommandResult unknown = run("unknown.glb", {});
+  ASSERT_EQ(unknown.status, 0) << unknown.err;
+  EXPECT_NE(unknown.out.find("apparel swing: as trained (--swing-calibration auto: the apparel module does not know"),
+            std::string::npos)
+      << unknown.out;
+  // Its training data swung at least 100 times the sway (no rig does): every piece of the hair is calmed.
+  const std::string path = (r.dir / "model" / kApparelCheckpoint).string();
+  CheckpointInfo info;
+  ApparelDynamicsNet net =
+      load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(path, ModuleKind::kApparel, info);
+  net->options.swing_reference = 100.0;
+  test::save_fresh_checkpoint(path, ModuleKind::kApparel, net, options_to_json(net->options), info.joint_names);
+  const test::CommandResult calmed = run("calmed.glb", {});
+  ASSERT_EQ(calmed.status, 0) << calmed.err;
+  EXPECT_NE(calmed.out.find("apparel swing: calibrated on the rig's own physics (--swing-calibration auto): 100 % of "
+                            "the apparel calmed"),
+            std::string::npos)
+      << calmed.out;
+  const test::CommandResult off = run("off.glb", {"--swing-calibration", "off"});
+  ASSERT_EQ(off.status, 0) << off.err;
+  EXPECT_NE(off.out.find("apparel swing: as trained (--swing-calibration off)"), std::string::npos) << off.out;
+  const test::CommandResult bad = run("bad.glb", {"--swing-calibration", "maybe"});
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--swing-calibration"), std::string::npos) << bad.err;
 }
 
 }  // namespace

@@ -100,9 +100,10 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   l.reach_levels = 3;
   l.handle_spacing = 0.03125;
   l.response = true;
+  l.swing_reference = 0.375;
   const char* dynamics_json = R"({"form": "local", "num_joints": 9, "anchor": "nearest", "edge_widths": [5, 6],
       "decoder_widths": [3], "negative_slope": 0.125, "inertia": 0.25, "naive_edge_conv": true,
-      "contact": false, "reach_levels": 3, "handle_spacing": 0.03125, "response": true})";
+      "contact": false, "reach_levels": 3, "handle_spacing": 0.03125, "response": true, "swing_reference": 0.375})";
   expect_written_as(l, dynamics_json);
   ApparelDynamicsOptions l2;
   options_from_json(dynamics_json, "x.ckpt", l2);
@@ -118,6 +119,7 @@ TEST(ModuleOptions, NonDefaultValuesRoundTrip) {
   EXPECT_EQ(l2.reach_levels, 3);
   EXPECT_EQ(l2.handle_spacing, 0.03125);
   EXPECT_TRUE(l2.response);
+  EXPECT_EQ(l2.swing_reference, 0.375);
   // The two apparel forms are told apart by `form`, which only the local one writes.
   EXPECT_TRUE(is_local_apparel_options(options_to_json(l)));
   EXPECT_FALSE(is_local_apparel_options(options_to_json(a)));

@@ -108,6 +108,49 @@ TEST(PenetrationResolver, SmoothingMovesTheFirstRingByHalfThePush) {
   EXPECT_EQ(V.row(far), c.mesh.V.row(far));
 }
 
+// An artist's model tucks apparel into the body at rest (hair roots in the scalp): with keep_rest_penetration the
+// vertices inside on the rest pose stay where they are in every frame, and only apparel that moved in is pushed.
+TEST(PenetrationResolver, LeavesApparelInsideAtRestWhereItIs) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  PenetrationOptions options;
+  options.keep_rest_penetration = true;
+  PenetrationResolver resolver(c.mesh.F, c.mask, options);
+  resolver.prepare(c.mesh.V);
+  ASSERT_EQ(resolver.rest_inside().size(), size_t(441));
+  EXPECT_EQ(std::count(resolver.rest_inside().begin(), resolver.rest_inside().end(), uint8_t(1)), 69);
+  // The rest pose itself: all 69 tucked, nothing moves.
+  MatrixX3f V = c.mesh.V;
+  PenetrationReport report = resolver.resolve(V);
+  EXPECT_EQ(report.before.inside, 69);
+  EXPECT_EQ(report.tucked, 69);
+  EXPECT_EQ(report.pushed, 0);
+  EXPECT_EQ(report.after.inside, 69);
+  EXPECT_EQ(V, c.mesh.V);
+  // The sheet slid 12 cm along x: vertices inside now and at rest stay put; those that slid in are pushed out.
+  MatrixX3f slid = c.mesh.V;
+  slid.bottomRows(441).col(0).array() += 0.12f;
+  V = slid;
+  report = resolver.resolve(V);
+  EXPECT_EQ(report.pushed + report.tucked, report.before.inside);
+  EXPECT_GT(report.pushed, 10);
+  EXPECT_GT(report.tucked, 10);
+  EXPECT_EQ(report.after.inside, report.tucked);
+  // Every vertex inside at rest is left alone (not pushed, and no push spreads to it); the others inside are out.
+  for (int k = 0; k < 441; ++k) {
+    const int i = c.body_vertices + k;
+    if (resolver.rest_inside()[size_t(k)]) EXPECT_EQ(V.row(i), slid.row(i)) << "vertex " << i;
+  }
+  EXPECT_EQ(resolver.measure(V).inside, report.tucked);
+  // Without the option every vertex inside is pushed out.
+  PenetrationResolver plain(c.mesh.F, c.mask, PenetrationOptions());
+  plain.prepare(c.mesh.V);
+  EXPECT_TRUE(plain.rest_inside().empty());
+  V = slid;
+  report = plain.resolve(V);
+  EXPECT_EQ(report.tucked, 0);
+  EXPECT_EQ(report.after.inside, 0);
+}
+
 // One resolver over frames whose body moves (its tree refitted per frame) gives what a fresh resolver
 // (a tree built on that frame) gives.
 TEST(PenetrationResolver, FollowsAMovingBodyAcrossFrames) {
