@@ -146,13 +146,13 @@ std::string physics_source(const ApparelBones* bones, const BoundCharacter& boun
 }
 
 // How far the learned apparel swings (AnimateSummary::swing_source).
-std::string swing_source(const BoundCharacter& bound, bool physics_known, const std::string& calibration,
-                         double reference) {
+std::string swing_source(const BoundCharacter& bound, const std::string& calibration, double reference) {
   if (calibration == "off") return "as trained (--swing-calibration off)";
   if (reference <= 0)
     return "as trained (--swing-calibration auto: the apparel module does not know the least lively apparel it "
            "trained on; amt train swing_reference stores it)";
-  if (!physics_known || !bound.apparel_swing_gain.defined() || bound.apparel_swing_gain.numel() == 0)
+  if (bound.num_apparel() == 0) return "as trained (no apparel)";
+  if (!bound.apparel_swing_gain.defined())
     return "as trained (--swing-calibration auto: the character's physics is unknown; calibrated on a PMX model's "
            "rigid bodies, a VRM avatar's spring bones or a dataset's rig)";
   const at::Tensor g = bound.apparel_swing_gain.to(at::kFloat);
@@ -820,12 +820,11 @@ AnimateSummary animate(const AnimateOptions& o) {
   s.bind_path = o.bind_path.empty()     ? default_bind_path(o.out.empty() ? prediction_glb : o.out)
                 : o.bind_path == "none" ? ""
                                         : o.bind_path;
-  const bool physics_known = character.rig_bones && character.rig_bones->response.rows() > 0;
   BindResult bind = bind_cached(bundle, character.mesh, character.skeleton.rest_joints, mask_override, s.bind_path,
                                 bones, own_weights, reads_response || calibrate ? character.rig_bones : nullptr);
   if (!calibrate) bind.bound.apparel_swing_gain = at::Tensor();
   if (bundle.local_apparel())
-    s.swing_source = swing_source(bind.bound, physics_known, o.swing_calibration,
+    s.swing_source = swing_source(bind.bound, o.swing_calibration,
                                   bundle.apparel_dynamics_for(bind.bound.given_weights)->options.swing_reference);
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;

@@ -716,41 +716,31 @@ SwingCalibration apparel_piece_swing(const at::Tensor& response, const at::Tenso
   AMT_CHECK(response.defined() && response.dim() == 2 && response.size(1) == kApparelResponseChannels,
             "swing calibration: response: expected (N_a, ", kApparelResponseChannels, "), found ",
             (response.defined() ? response.sizes() : at::IntArrayRef{}));
-  const int64_t N_a = response.size(0);
+  const int N_a = int(response.size(0));
   AMT_CHECK(apparel_edges.defined() && apparel_edges.dim() == 2 && apparel_edges.size(1) == 2,
             "swing calibration: apparel edges: expected (E_a, 2)");
-  const at::Tensor E = apparel_edges.to(at::kLong).contiguous();
-  const int64_t* e = E.data_ptr<int64_t>();
-  // Pieces: connected parts of the apparel over the edges (union-find with path halving).
-  std::vector<int64_t> root(static_cast<size_t>(N_a));
-  std::iota(root.begin(), root.end(), int64_t(0));
-  const auto find = [&root](int64_t v) {
-    while (root[size_t(v)] != v) v = root[size_t(v)] = root[size_t(root[size_t(v)])];
-    return v;
-  };
-  for (int64_t k = 0; k < E.size(0); ++k) {
-    AMT_CHECK(e[2 * k] >= 0 && e[2 * k] < N_a && e[2 * k + 1] >= 0 && e[2 * k + 1] < N_a,
-              "swing calibration: apparel edge ", k, " out of range [0, ", N_a, ")");
-    const int64_t a = find(e[2 * k]), b = find(e[2 * k + 1]);
-    if (a != b) root[size_t(std::max(a, b))] = std::min(a, b);
-  }
-  std::vector<int64_t> piece_of(static_cast<size_t>(N_a)), index(static_cast<size_t>(N_a), -1), count;
-  std::vector<double> swing;
+  AMT_CHECK(apparel_edges.numel() == 0 ||
+                (apparel_edges.min().item<int64_t>() >= 0 && apparel_edges.max().item<int64_t>() < N_a),
+            "swing calibration: apparel edges: expected indices in [0, ", N_a, ")");
+  // Pieces: connected parts of the apparel over the edges.
+  const at::Tensor E = apparel_edges.to(at::kInt).contiguous();
+  int P = 0;
+  const std::vector<int32_t> piece =
+      connected_components(N_a, Eigen::Map<const MatrixX2i>(E.data_ptr<int32_t>(), E.size(0), 2), &P);
+  std::vector<double> swing(size_t(P), 0.0);
+  std::vector<int64_t> count(size_t(P), 0);
   const at::Tensor r = response.to(at::kFloat).contiguous();
   const float* rv = r.data_ptr<float>();
-  for (int64_t v = 0; v < N_a; ++v) {
-    int64_t& p = index[size_t(find(v))];
-    if (p < 0) p = int64_t(count.size()), count.push_back(0), swing.push_back(0.0);
-    piece_of[size_t(v)] = p;
-    const float* row = rv + v * kApparelResponseChannels;
-    swing[size_t(p)] += double(row[0]) * (double(row[1]) + double(row[2]));
-    ++count[size_t(p)];
+  for (int v = 0; v < N_a; ++v) {
+    const float* row = rv + int64_t(v) * kApparelResponseChannels;
+    swing[size_t(piece[size_t(v)])] += double(row[0]) * (double(row[1]) + double(row[2]));
+    ++count[size_t(piece[size_t(v)])];
   }
   SwingCalibration out;
-  out.piece_of = at::tensor(piece_of, at::kLong);
+  out.piece_of = at::tensor(std::vector<int64_t>(piece.begin(), piece.end()), at::kLong);
   out.piece_vertices = at::tensor(count, at::kLong);
-  out.piece_swing = at::empty({int64_t(count.size())}, at::kFloat);
-  for (size_t p = 0; p < count.size(); ++p) out.piece_swing[int64_t(p)] = float(swing[p] / double(count[p]));
+  out.piece_swing = at::empty({P}, at::kFloat);
+  for (int p = 0; p < P; ++p) out.piece_swing[p] = float(swing[size_t(p)] / double(count[size_t(p)]));
   return out;
 }
 
@@ -765,27 +755,16 @@ SwingCalibration swing_calibration(const BoundCharacter& character, double swing
   return out;
 }
 
-double swing_reference(const std::vector<SwingCalibration>& characters, double quantile) {
-  AMT_CHECK(quantile >= 0 && quantile < 1, "swing reference: quantile: expected in [0, 1), found ", quantile);
-  std::vector<std::pair<float, int64_t>> pieces;  // (swing, vertices)
-  int64_t total = 0;
+double swing_reference(const std::vector<SwingCalibration>& characters) {
+  double least = 0.0;
+  bool any = false;
   for (const SwingCalibration& c : characters) {
-    if (!c.piece_swing.defined()) continue;
-    for (int64_t p = 0; p < c.piece_swing.size(0); ++p) {
-      pieces.emplace_back(c.piece_swing[p].item<float>(), c.piece_vertices[p].item<int64_t>());
-      total += pieces.back().second;
-    }
+    if (!c.piece_swing.defined() || c.piece_swing.numel() == 0) continue;
+    const double m = c.piece_swing.min().item<double>();
+    least = any ? std::min(least, m) : m;
+    any = true;
   }
-  if (pieces.empty() || total == 0) return 0.0;
-  std::sort(pieces.begin(), pieces.end());
-  // The smallest swing whose pieces, with all below it, hold at least `quantile` of the vertices (quantile 0: the
-  // least lively piece).
-  int64_t below = 0;
-  for (const auto& [swing, vertices] : pieces) {
-    below += vertices;
-    if (vertices > 0 && double(below) >= quantile * double(total)) return double(swing);
-  }
-  return double(pieces.back().first);
+  return least;
 }
 
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

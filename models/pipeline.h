@@ -408,15 +408,12 @@ SwingCalibration apparel_piece_swing(const at::Tensor& response, const at::Tenso
 /// character's physics response (apparel_response) is undefined or the reference is not positive.
 SwingCalibration swing_calibration(const BoundCharacter& character, double swing_reference);
 
-/// The quantile of the training apparel's swing taken as the least lively the module knows: 0, its least lively
-/// piece. (The 1 % quantile, 0.325 on data/default, calmed a held-out character's pieces whose own rig swings 0.25,
-/// where the module was right, and cost 0.04 cm there: models/pretrained/README.md.)
-inline constexpr double kSwingReferenceQuantile = 0.0;
-
-/// The reference of the calibration from training data: the `quantile` (in [0, 1)) of the pieces' swing
-/// (apparel_piece_swing of each training character), each piece weighted by its vertices; 0 is the least lively
-/// piece's swing. 0 without pieces.
-double swing_reference(const std::vector<SwingCalibration>& characters, double quantile = kSwingReferenceQuantile);
+/// The reference of the calibration from training data: the least swing of the pieces (apparel_piece_swing) of
+/// the training characters, so that the calibration acts only outside what the module was trained on (the 1 %
+/// quantile of the pieces, weighted by vertices, 0.3247 on data/default, also calmed pieces of held-out character 29
+/// whose rig swings 0.25, where the module was right, and cost 0.04 cm there: models/pretrained/README.md). 0
+/// without pieces.
+double swing_reference(const std::vector<SwingCalibration>& characters);
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

@@ -831,7 +831,11 @@ TrainResult run_training(ModuleKind kind, bool end_to_end, const std::vector<std
     };
   }
   const std::vector<std::string> shards = resolve_shards(data);
-  if (local_apparel && o.resume.empty()) o.swing_reference = measure_swing_reference(shards);
+  // Measured on the training data; data without responses keeps the options' own (an --init module's).
+  if (local_apparel && o.resume.empty()) {
+    const double reference = measure_swing_reference(shards);
+    if (reference > 0) o.swing_reference = reference;
+  }
   SampleSource source(shards, sampling);
   const std::vector<std::string>& joint_names = source.joint_names();
   if (sampling.anchor_body_weights) {

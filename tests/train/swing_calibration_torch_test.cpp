@@ -52,21 +52,15 @@ TEST(SwingCalibration, PiecesAreTheApparelsConnectedPartsWithTheirRigsMeanSwing)
   EXPECT_THROW(apparel_piece_swing(response, at::tensor({0, 5}, at::kLong).view({1, 2})), Error);
 }
 
-TEST(SwingCalibration, TheReferenceIsTheLeastLivelyPieceOrAVertexWeightedQuantile) {
-  // Pieces of swing 0.1 (2 vertices), 0.3 (8), 0.9 (90) over two characters.
-  SwingCalibration a, b;
+TEST(SwingCalibration, TheReferenceIsTheLeastLivelyPieceOfTheTrainingCharacters) {
+  // Pieces of swing 0.9 and 0.1 in one character, 0.3 in another, and a character without pieces.
+  SwingCalibration a, b, none;
   a.piece_swing = at::tensor({0.9f, 0.1f});
-  a.piece_vertices = at::tensor({90, 2}, at::kLong);
   b.piece_swing = at::tensor({0.3f});
-  b.piece_vertices = at::tensor({8}, at::kLong);
-  EXPECT_FLOAT_EQ(float(swing_reference({a, b}, 0.02)), 0.1f);  // 2 of 100 vertices at or below 0.1
-  EXPECT_FLOAT_EQ(float(swing_reference({a, b}, 0.05)), 0.3f);  // 10 of 100 at or below 0.3
-  EXPECT_FLOAT_EQ(float(swing_reference({a, b}, 0.5)), 0.9f);
-  EXPECT_FLOAT_EQ(float(swing_reference({a, b}, 0.0)), 0.1f);  // the least lively piece
-  EXPECT_FLOAT_EQ(float(swing_reference({a, b})), 0.1f);       // the default
+  EXPECT_FLOAT_EQ(float(swing_reference({a, b, none})), 0.1f);
+  EXPECT_FLOAT_EQ(float(swing_reference({none, b})), 0.3f);
   EXPECT_EQ(swing_reference({}), 0.0);
-  EXPECT_THROW(swing_reference({a}, 1.0), Error);
-  EXPECT_THROW(swing_reference({a}, -0.1), Error);
+  EXPECT_EQ(swing_reference({none}), 0.0);
 }
 
 // A micro character bound to a fresh local module whose decoder is not zero (so the module swings), and a motion.

@@ -406,6 +406,15 @@ TEST(LocalApparel, InitStartsANewRunFromAnotherRunsNetwork) {
       load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(w.checkpoint, ModuleKind::kApparel, c);
   EXPECT_TRUE(with_response->options.response);
   EXPECT_EQ(with_response->channels(), from->channels() + kApparelResponseChannels);
+  // The source's swing reference is kept when the data carries no physics response to measure one from.
+  set_swing_reference(source.checkpoint, 0.25);
+  TrainOptions calibrated = tuned;
+  calibrated.out_dir = (test_dir() / "init_calibrated").string();
+  const TrainResult kept = train_module(ModuleKind::kApparel, {split_dataset()}, calibrated);
+  CheckpointInfo d;
+  ApparelDynamicsNet keeps =
+      load_frozen_network<ApparelDynamicsNet, ApparelDynamicsOptions>(kept.checkpoint, ModuleKind::kApparel, d);
+  EXPECT_EQ(keeps->options.swing_reference, 0.25);
   // --init with --resume is refused, naming both.
   TrainOptions both = tuned;
   both.resume = r.checkpoint;
