@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -21,6 +22,7 @@
 #include "data_tools/formats/viewer_folder.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
+#include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/motion.h"
 #include "infer/pmx_physics_player.h"
 
@@ -694,6 +696,108 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
 
 }  // namespace
 
+// The character's own apparel physics (a PMX model's rigid bodies, a VRM avatar's spring bones) on `player`'s frames
+// (at kApparelStepFps), started from the rest pose through `lead_in` frames as the simulated paths start a clip:
+// every vertex per frame. Empty when the character has no physics amt simulates.
+std::vector<MatrixX3f> own_physics_frames(const AnimateOptions& o, const RuntimeCharacter& character,
+                                          const SourceMotion& source, const MotionPlayer& player, int lead_in) {
+  std::vector<MatrixX3f> frames(size_t(player.num_frames()));
+  const Transforms first = player.frame(0);
+  std::string e = std::filesystem::path(o.character.spec).extension().string();
+  std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  if (e == ".pmx" && character.rig_bones_with_response) {
+    std::optional<JointMapFile> joint_map;
+    if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
+    PmxSimulationOptions simulation;
+    simulation.fps = kPhysicsStepFps;
+    PmxPhysicsPlayer physics(o.character.spec, joint_map, simulation);
+    PlaybackOptions playback;
+    playback.lead_in = lead_in;
+    const MotionPlayer clock =
+        step_clock(source, character, playback, player.num_frames(), kApparelStepFps, kPhysicsStepFps);
+    physics.start(first, int(std::lround(lead_in * double(kPhysicsStepFps) / kApparelStepFps)));
+    int taken = -1;
+    for (int t = 0; t < player.num_frames(); ++t) {
+      const StepPosition p = step_position(t, kApparelStepFps, kPhysicsStepFps, clock.num_frames());
+      while (taken < p.k0) physics.advance(clock.frame(++taken));
+      physics.skin(frames[size_t(t)]);
+    }
+    return frames;
+  }
+  if (character.springs && character.springs->num_joints() > 0) {
+    SpringBoneSimulator springs(character.file_skeleton, *character.springs);
+    const double dt = 1.0 / double(kApparelStepFps);
+    const Transforms rest = file_rest_pose(character);
+    springs.reset(rest);
+    springs.advance(rest, 1.0);
+    const int n = std::max(1, lead_in);
+    for (int k = 1; k < n; ++k)
+      springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), dt);
+    for (int t = 0; t < player.num_frames(); ++t) {
+      const Transforms M = springs.advance(file_pose(character, player.frame(t)), dt);
+      linear_blend_skinning(character.mesh.V, character.file_weights, M, frames[size_t(t)]);
+    }
+    return frames;
+  }
+  return {};
+}
+
+// The learned apparel's swing fitted on the character's own physics (fit_swing_calibration) over the calibration
+// motion of the model folder (kCalibrationMotion): the uncalibrated module and the character's simulation run through
+// its first kCalibrationSeconds from the rest pose. Returns what the run reports, and sets bound.apparel_swing_gain;
+// an empty string (the gains left as they are) when the character has no physics amt simulates or the folder has no
+// calibration motion.
+std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle& bundle,
+                                     const RuntimeCharacter& character, BoundCharacter& bound) {
+  const std::filesystem::path motion_path = std::filesystem::path(o.model_dir) / kCalibrationMotion;
+  if (bound.num_apparel() == 0 || !std::filesystem::is_regular_file(motion_path)) return "";
+  if (!(character.springs && character.springs->num_joints() > 0) && !character.rig_bones_with_response) return "";
+  MotionSpec spec;
+  spec.spec = motion_path.string();
+  const SourceMotion source = load_motion(spec);
+  PlaybackOptions playback;
+  playback.fps = kApparelStepFps;
+  playback.frames = int(std::lround(kCalibrationSeconds * kApparelStepFps));
+  playback.lead_in = std::max(1, o.playback.lead_in);
+  const MotionPlayer player(source, character, playback);
+  const std::vector<MatrixX3f> truth = own_physics_frames(o, character, source, player, playback.lead_in);
+  if (truth.empty()) return "";
+
+  c10::InferenceMode inference;
+  BoundCharacter plain = bound;
+  plain.apparel_swing_gain = at::Tensor();
+  PipelineStepper stepper(bundle, plain, rest_apparel_history(plain), PipelineStages::kBodyApparel);
+  stepper.set_strain_limit(o.strain_limit);
+  const Transforms first = player.frame(0);
+  const at::Tensor lead = motion_lead_in(transforms_tensor(first), plain.joints, playback.lead_in);
+  for (int64_t k = 0; k < lead.size(0); ++k) stepper.step(lead[k]);
+  const int64_t T = player.num_frames(), N_a = plain.num_apparel();
+  const at::Tensor A_rest = plain.V.index_select(0, plain.apparel_ids);
+  at::Tensor A_hat = at::empty({T, N_a, 3}, at::kFloat), S = at::empty({T, N_a, 3}, at::kFloat),
+             G = at::empty({T, N_a, 3}, at::kFloat);
+  for (int64_t t = 0; t < T; ++t) {
+    const at::Tensor joints = transforms_tensor(player.frame(int(t)));
+    A_hat[t] = stepper.step_detailed(joints).A_hat;
+    S[t] = linear_blend_skinning(A_rest, plain.apparel_anchor_weights, joints.unsqueeze(0), plain.joints).squeeze(0);
+    const MatrixX3f& V = truth[size_t(t)];
+    AMT_CHECK(V.rows() == plain.num_vertices(), "swing calibration: the simulation gave ", V.rows(),
+              " vertices, expected ", plain.num_vertices());
+    G[t] = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::TensorOptions().dtype(at::kFloat))
+               .index_select(0, plain.apparel_ids);
+  }
+  const SwingCalibration fit = fit_swing_calibration(A_hat, S, G, plain.apparel_edges);
+  bound.apparel_swing_gain = fit.gain;
+  const at::Tensor g = fit.gain;
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "fitted on the rig's own physics over %.1f s of the calibration motion (%s; --swing-calibration "
+                "auto): %.0f %% of the apparel calmed, gain median %.2f, lowest %.2f",
+                double(T) / double(kApparelStepFps), kCalibrationMotion,
+                100.0 * g.lt(0.999f).to(at::kFloat).mean().item<double>(), g.median().item<double>(),
+                g.min().item<double>());
+  return text;
+}
+
 AnimateSummary animate(const AnimateOptions& o) {
   AMT_CHECK(o.apparel.empty() || o.apparel == "learned" || o.apparel == "physics" || o.apparel == "spring-bones",
             "--apparel: expected learned, physics or spring-bones, found '", o.apparel, "'");
@@ -826,6 +930,14 @@ AnimateSummary animate(const AnimateOptions& o) {
   if (bundle.local_apparel())
     s.swing_source = swing_source(bind.bound, o.swing_calibration,
                                   bundle.apparel_dynamics_for(bind.bound.given_weights)->options.swing_reference);
+  if (calibrate) {
+    const auto fit_start = Clock::now();
+    const std::string fitted = fit_swing_on_own_physics(o, bundle, character, bind.bound);
+    if (!fitted.empty()) {
+      s.swing_source = fitted;
+      s.calibration_seconds = seconds_since(fit_start);
+    }
+  }
   s.bind_seconds = bind.seconds;
   s.bind_cache_hit = bind.cache_hit;
   s.hung = bind.bound.hung;
@@ -1002,7 +1114,11 @@ std::string describe(const AnimateSummary& s) {
   }
   if (!s.weights_source.empty()) out << "skinning weights: " << s.weights_source << "\n";
   if (!s.physics_source.empty()) out << "apparel physics: " << s.physics_source << "\n";
-  if (!s.swing_source.empty()) out << "apparel swing: " << s.swing_source << "\n";
+  if (!s.swing_source.empty()) {
+    out << "apparel swing: " << s.swing_source;
+    if (s.calibration_seconds > 0) out << " (" << std::fixed << std::setprecision(2) << s.calibration_seconds << " s)";
+    out << std::defaultfloat << "\n";
+  }
   out << "apparel: " << s.apparel << "\n";
   if (s.physics) {
     std::snprintf(line, sizeof(line),

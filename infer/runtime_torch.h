@@ -185,6 +185,8 @@ struct AnimateSummary {
   std::string bind_path;
   bool bind_cache_hit = false;
   double bind_seconds = 0, load_seconds = 0, total_seconds = 0;
+  /// Seconds spent fitting the swing calibration on the character's own physics (0 when it did not run).
+  double calibration_seconds = 0;
   /// Per-frame wall time (model + penetration + output): median and 95th percentile.
   double frame_median = 0, frame_p95 = 0;
   /// Mean stage times per frame.
@@ -210,6 +212,11 @@ inline constexpr float kApparelStepFps = 30.0f;
 /// The rate `amt animate --apparel physics` steps a PMX model's physics at (each step of 2 Bullet substeps of
 /// 1/240 s): a multiple of 24, 30, 60 and 120 fps, so frames at those rates fall on steps.
 inline constexpr float kPhysicsStepFps = 120.0f;
+
+/// The motion `amt animate` fits the learned apparel's swing on (fit_swing_calibration, models/pipeline.h) when the
+/// character carries physics amt simulates, a file of the model folder, and how much of it runs.
+inline constexpr const char* kCalibrationMotion = "calibration_motion.bvh";
+inline constexpr double kCalibrationSeconds = 4.0;
 
 /// Runs the whole job. Throws amt::Error on bad input (before any output is created where it can be
 /// checked up front); the output is complete or absent.

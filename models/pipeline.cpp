@@ -767,6 +767,40 @@ double swing_reference(const std::vector<SwingCalibration>& characters) {
   return least;
 }
 
+SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor& S, const at::Tensor& G,
+                                       const at::Tensor& apparel_edges) {
+  AMT_CHECK(A_hat.defined() && A_hat.dim() == 3 && A_hat.size(2) == 3, "swing calibration: module apparel: expected ",
+            "(T, N_a, 3), found ", (A_hat.defined() ? A_hat.sizes() : at::IntArrayRef{}));
+  AMT_CHECK(S.defined() && S.sizes() == A_hat.sizes() && G.defined() && G.sizes() == A_hat.sizes(),
+            "swing calibration: anchor skinning and simulation: expected ", A_hat.sizes(), " as the module's apparel");
+  const int64_t N_a = A_hat.size(1);
+  AMT_CHECK(apparel_edges.defined() && apparel_edges.dim() == 2 && apparel_edges.size(1) == 2,
+            "swing calibration: apparel edges: expected (E_a, 2)");
+  AMT_CHECK(apparel_edges.numel() == 0 ||
+                (apparel_edges.min().item<int64_t>() >= 0 && apparel_edges.max().item<int64_t>() < N_a),
+            "swing calibration: apparel edges: expected indices in [0, ", N_a, ")");
+  const at::Tensor d = (A_hat - S).to(at::kDouble), g = (G - S).to(at::kDouble);
+  AMT_CHECK(d.isfinite().all().item<bool>() && g.isfinite().all().item<bool>(),
+            "swing calibration: expected finite positions");
+  const at::Tensor E = apparel_edges.to(at::kInt).contiguous();
+  int P = 0;
+  const std::vector<int32_t> piece =
+      connected_components(int(N_a), Eigen::Map<const MatrixX2i>(E.data_ptr<int32_t>(), E.size(0), 2), &P);
+  SwingCalibration out;
+  out.piece_of = at::tensor(std::vector<int64_t>(piece.begin(), piece.end()), at::kLong);
+  // Per vertex over the frames, then per piece.
+  const at::Tensor along = (d * g).sum(at::IntArrayRef{0, 2}), own = (d * d).sum(at::IntArrayRef{0, 2});
+  const at::Tensor num = at::zeros({P}, at::kDouble).index_add_(0, out.piece_of, along);
+  const at::Tensor den = at::zeros({P}, at::kDouble).index_add_(0, out.piece_of, own);
+  out.piece_vertices = at::zeros({P}, at::kLong).index_add_(0, out.piece_of, at::ones({N_a}, at::kLong));
+  // A piece the module leaves on its anchor (|Â - S| below a micrometre per vertex and frame) has nothing to scale.
+  const at::Tensor moved = den.gt(1e-12 * double(A_hat.size(0)) * out.piece_vertices.to(at::kDouble));
+  out.piece_gain =
+      at::where(moved, num / den.clamp_min(1e-30), at::ones({P}, at::kDouble)).clamp(0.0, 1.0).to(at::kFloat);
+  out.gain = out.piece_gain.index_select(0, out.piece_of);
+  return out;
+}
+
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
                         const at::Tensor& joint_transforms, PipelineStages stages) {
   AMT_CHECK(joint_transforms.dim() == 4, "pipeline: joint transforms: expected (T, J, 3, 4), found ",

@@ -415,6 +415,18 @@ SwingCalibration swing_calibration(const BoundCharacter& character, double swing
 /// without pieces.
 double swing_reference(const std::vector<SwingCalibration>& characters);
 
+/// The swing calibration fitted on the character's own physics over a calibration motion: the module (uncalibrated)
+/// and the character's own simulation run through the same motion, and each apparel piece gets the gain that brings
+/// the module's offsets from the anchor skinning closest to the simulation's, in least squares:
+/// gain = clamp(sum <Â - S, G - S> / sum |Â - S|^2, 0, 1) over the piece's vertices and the frames (1 for a piece the
+/// module does not move). A module whose swing on a piece is right keeps it (gain about 1); one whose swing is
+/// unrelated to the rig's is calmed towards rigid skinning (gain about 0), the better of the two by the same measure.
+///   A_hat, S, G (T, N_a, 3): the module's apparel, its anchor skinning and the simulation's, on the same frames;
+///   apparel_edges (E_a, 2) int64 positions in the apparel list (the pieces). Throws amt::Error on shapes that do
+///   not match or non-finite input.
+SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor& S, const at::Tensor& G,
+                                       const at::Tensor& apparel_edges);
+
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,
                         const at::Tensor& joint_transforms, PipelineStages stages = PipelineStages::kFull);

@@ -12,6 +12,7 @@
 #include "data_tools/formats/pmx_export.h"
 #include "infer/bind_cache_torch.h"
 #include "infer/character_input.h"
+#include "infer/runtime_torch.h"
 #include "models/pipeline.h"
 #include "tests/data_tools/builder/pmx_humanoid.h"
 #include "tests/test_support.h"
@@ -211,6 +212,14 @@ TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingDa
                             "the apparel calmed"),
             std::string::npos)
       << calmed.out;
+  // With a calibration motion in the model folder the swing is fitted on the rig's own physics over it instead.
+  fs::copy_file(motion, r.dir / "model" / kCalibrationMotion);
+  const test::CommandResult fitted = run("fitted.glb", {});
+  ASSERT_EQ(fitted.status, 0) << fitted.err;
+  EXPECT_NE(fitted.out.find("apparel swing: fitted on the rig's own physics over 4.0 s of the calibration motion ("
+                            "calibration_motion.bvh; --swing-calibration auto)"),
+            std::string::npos)
+      << fitted.out;
   const test::CommandResult off = run("off.glb", {"--swing-calibration", "off"});
   ASSERT_EQ(off.status, 0) << off.err;
   EXPECT_NE(off.out.find("apparel swing: as trained (--swing-calibration off)"), std::string::npos) << off.out;

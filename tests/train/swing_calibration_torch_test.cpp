@@ -8,6 +8,7 @@
 #include <torch/utils.h>
 
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <tuple>
@@ -50,6 +51,47 @@ TEST(SwingCalibration, PiecesAreTheApparelsConnectedPartsWithTheirRigsMeanSwing)
 
   EXPECT_THROW(apparel_piece_swing(response.narrow(1, 0, 2), edges), Error);
   EXPECT_THROW(apparel_piece_swing(response, at::tensor({0, 5}, at::kLong).view({1, 2})), Error);
+}
+
+TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroOne) {
+  // Four pieces of two vertices each (edges 0-1, 2-3, 4-5, 6-7), three frames. The module's offsets d = Â - S are
+  // arbitrary; the simulation's G - S is 0.5 d on piece 0 (gain 0.5), 2 d on piece 1 (clamped to 1), -d on piece 2
+  // (clamped to 0); piece 3 the module leaves on its anchor (gain 1, nothing to scale).
+  at::manual_seed(7);
+  const int64_t T = 3, N_a = 8;
+  const at::Tensor S = at::randn({T, N_a, 3});
+  at::Tensor d = at::randn({T, N_a, 3});
+  d.narrow(1, 6, 2).zero_();
+  at::Tensor g = d.clone();
+  g.narrow(1, 0, 2).mul_(0.5);
+  g.narrow(1, 2, 2).mul_(2.0);
+  g.narrow(1, 4, 2).mul_(-1.0);
+  g.narrow(1, 6, 2).copy_(at::randn({T, 2, 3}));
+  const at::Tensor edges = at::tensor({0, 1, 2, 3, 4, 5, 6, 7}, at::kLong).view({4, 2});
+  const SwingCalibration fit = fit_swing_calibration(S + d, S, S + g, edges);
+  ASSERT_EQ(fit.piece_gain.size(0), 4);
+  EXPECT_NEAR(fit.piece_gain[0].item<float>(), 0.5f, 1e-5f);
+  EXPECT_FLOAT_EQ(fit.piece_gain[1].item<float>(), 1.0f);
+  EXPECT_FLOAT_EQ(fit.piece_gain[2].item<float>(), 0.0f);
+  EXPECT_FLOAT_EQ(fit.piece_gain[3].item<float>(), 1.0f);
+  // Per vertex: its piece's gain.
+  ASSERT_EQ(fit.gain.size(0), N_a);
+  for (int64_t v = 0; v < N_a; ++v)
+    EXPECT_FLOAT_EQ(fit.gain[v].item<float>(), fit.piece_gain[fit.piece_of[v].item<int64_t>()].item<float>());
+  // A partial match: G - S = 0.5 d + e with e orthogonal to d over the piece keeps the least-squares scale 0.5.
+  at::Tensor h = g.clone();
+  const at::Tensor dp = d.narrow(1, 0, 2);
+  at::Tensor e = at::randn({T, 2, 3});
+  e -= dp * ((e * dp).sum() / (dp * dp).sum());
+  h.narrow(1, 0, 2).add_(e);
+  EXPECT_NEAR(fit_swing_calibration(S + d, S, S + h, edges).piece_gain[0].item<float>(), 0.5f, 1e-4f);
+
+  // Bad input: shapes that do not match, an edge out of range, a non-finite position.
+  EXPECT_THROW(fit_swing_calibration(S + d, S.narrow(0, 0, 2), S + g, edges), Error);
+  EXPECT_THROW(fit_swing_calibration(S + d, S, S + g, at::tensor({0, 8}, at::kLong).view({1, 2})), Error);
+  at::Tensor bad = S + g;
+  bad[1][3][0] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(fit_swing_calibration(S + d, S, bad, edges), Error);
 }
 
 TEST(SwingCalibration, TheReferenceIsTheLeastLivelyPieceOfTheTrainingCharacters) {
