@@ -214,11 +214,17 @@ void add_eval_command(CLI::App& app) {
                    "limited to (0: off, the apparel module's raw output)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
       ->capture_default_str();
-  eval->add_option("--swing-calibration", o.calibrate_swing,
-                   "Scale the learned apparel's swing, per piece, to the character's own physics when its rig "
-                   "carries a physics response (on) or run the apparel module as trained (off)")
-      ->transform(CLI::IsMember(std::map<std::string, bool>{{"on", true}, {"off", false}}))
-      ->capture_default_str();
+  eval->add_option_function<std::string>(
+          "--swing-calibration",
+          [&o](const std::string& value) {
+            o.calibrate_swing = value != "off";
+            o.fit_swing = value == "on";
+          },
+          "Scale the learned apparel's swing, per piece, to the character's own physics: on (fitted on another "
+          "clip of the character, else from its rig's physics response), probe (from the response only) or off "
+          "(the apparel module as trained)")
+      ->check(CLI::IsMember({"on", "probe", "off"}))
+      ->default_str("on");
   eval->add_flag("--no-plots", command->no_plots, "Do not run gnuplot");
   eval->add_flag("--quiet", command->quiet, "No progress line");
   add_threads_option(*eval);

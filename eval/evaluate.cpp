@@ -14,6 +14,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <set>
 #include <tuple>
 
 #include "data_tools/builder/garment_pairs.h"
@@ -205,6 +206,11 @@ struct CharacterCache {
   MatrixX2i pairs;      // coincident_pairs of the rest mesh: the seam gap's pairs
   MatrixX2i apparel_E;  // apparel_edges of E: tearing and apparel ELS
   MeshConstruction construction;
+  // The character's clips in its shard, in file order (listed on first use), and its binds with the swing fitted on
+  // one of them (EvaluateOptions::fit_swing): (bind, calibration clip, window: 0 rollout, else the paper protocol's) ->
+  // bind.
+  std::optional<std::vector<std::string>> own_clips;
+  std::map<std::tuple<std::string, std::string, int64_t>, BoundCharacter> fitted;
 
   // The ground truth of `count` frames of `clip` from `first`, (count * N, 3): as stored, or remade.
   MatrixX3f ground_truth(const DatasetReader& reader, const std::string& clip, int first, int count) const {
@@ -415,6 +421,47 @@ class ClipScorer {
   SeparationAccumulator* separation_ = nullptr;
   std::pair<double, double>* amplitude_ = nullptr;
 };
+
+// The clip of character c whose simulation fits the apparel swing while `clip` is scored (EvaluateOptions::fit_swing):
+// the character's first clip in file order that the evaluation does not score (`scored`: (shard, clip)), else its
+// first clip other than `clip`; empty when it has no other clip.
+std::string calibration_clip(CharacterCache& c, const DatasetReader& reader, int shard, const std::string& clip,
+                             const std::set<std::pair<int, std::string>>& scored) {
+  if (!c.own_clips) {
+    c.own_clips.emplace();
+    for (const std::string& name : reader.clip_names())
+      if (reader.clip_info(name).character == c.name) c.own_clips->push_back(name);
+  }
+  std::string other;
+  for (const std::string& name : *c.own_clips) {
+    if (!scored.count({shard, name})) return name;
+    if (other.empty() && name != clip) other = name;
+  }
+  return other;
+}
+
+// Bind `b` (key `bind`) of character c with its swing fitted on the first kSwingCalibrationSeconds of clip
+// `calibration`, its ground truth, under the protocol it is scored with (fit_swing_on_motion): window 0, the rollout
+// after the lead-in from the rest pose; window > 0, the paper protocol's windows. `b` itself when the clip is shorter
+// than a window.
+const BoundCharacter& fitted_bind(const ModelBundle& bundle, CharacterCache& c, const DatasetReader& reader,
+                                  const std::string& bind, const BoundCharacter& b, const std::string& calibration,
+                                  int64_t window, float strain_limit, int64_t J) {
+  const auto key = std::make_tuple(bind, calibration, window);
+  if (const auto it = c.fitted.find(key); it != c.fitted.end()) return it->second;
+  const ClipInfo info = reader.clip_info(calibration);
+  const int T = std::min(info.num_frames, std::max(1, int(std::lround(kSwingCalibrationSeconds * info.fps))));
+  if (T < window) return b;
+  const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(calibration, 0, T), T, J);
+  const MatrixX3f truth = c.ground_truth(reader, calibration, 0, T);
+  const at::Tensor G =
+      float_tensor(truth.data(), {T, static_cast<int64_t>(c.mask.size()), 3}).index_select(1, b.apparel_ids);
+  BoundCharacter fitted = b;
+  fitted.apparel_swing_gain = fit_swing_on_motion(bundle, b, motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames),
+                                                  motion, G, strain_limit, window)
+                                  .gain;
+  return c.fitted.emplace(key, std::move(fitted)).first->second;
+}
 
 BindOptions bind_options_for(const std::string& bind, const CharacterCache& c, bool calibrate_swing) {
   BindOptions o;
@@ -874,6 +921,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   characters.artist_style = options.artist_style_options;
   characters.rig_handles = options.rig_handles;
   int short_clips = 0;
+  std::set<std::pair<int, std::string>> scored, fitted_characters;
+  for (const EvalClip& clip : clips) scored.insert({clip.shard, clip.info.name});
   Progress progress(options.progress, static_cast<int>(clips.size()), "clips");
   progress.update(0);
   for (size_t k = 0; k < clips.size(); ++k) {
@@ -903,7 +952,17 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
                     .emplace(m.bind, bind_character(bundle, c.V, c.F, c.joints,
                                                     bind_options_for(m.bind, c, options.calibrate_swing)))
                     .first;
+      const bool fit = options.calibrate_swing && options.fit_swing && m.stages != PipelineStages::kBodyOnly &&
+                       m.source == ApparelSource::kNetwork && bundle.local_apparel() && bound->second.num_apparel() > 0;
+      const std::string calibration = fit ? calibration_clip(c, reader, clip.shard, clip.info.name, scored) : "";
+      if (!calibration.empty()) fitted_characters.insert({clip.shard, c.name});
       const BoundCharacter& b = bound->second;
+      // The bind each protocol scores: with the swing fitted under that protocol, or as bound.
+      const auto scored_bind = [&](int64_t window) -> const BoundCharacter& {
+        return calibration.empty()
+                   ? b
+                   : fitted_bind(bundle, c, reader, m.bind, b, calibration, window, options.strain_limit, J);
+      };
       if (m.bind == "predicted" && !c.segmentation) {
         c.segmentation = segmentation_scores(b.apparel_prob, c.gt_mask);
         if (!c.remake) c.bare_apparel_share = bare_body_apparel_share(bundle, c);
@@ -950,7 +1009,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         ClipScorer scorer(acc, c, m.key, kPaper, per_character(m.key));
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kPaper, per_character(tiled_spec->key));
-        PipelineStepper stepper(bundle, b, gt_apparel.narrow(0, 0, kHistory), m.stages, m.source, inertia);
+        PipelineStepper stepper(bundle, scored_bind(options.window), gt_apparel.narrow(0, 0, kHistory), m.stages,
+                                m.source, inertia);
         stepper.set_strain_limit(options.strain_limit);
         for (int64_t s = 0; s + options.window <= T; s += options.window - kHistory) {
           stepper.reset(gt_apparel.narrow(0, s, kHistory), motion.narrow(0, s, kHistory));
@@ -965,7 +1025,7 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
         ClipScorer scorer(acc, c, m.key, kRollout, per_character(m.key));
         std::optional<ClipScorer> tiled;
         if (with_tiled) tiled.emplace(acc, c, tiled_spec->key, kRollout, per_character(tiled_spec->key));
-        PipelineStepper stepper(bundle, b, rest_apparel_history(b), m.stages, m.source, inertia);
+        PipelineStepper stepper(bundle, scored_bind(0), rest_apparel_history(b), m.stages, m.source, inertia);
         stepper.set_strain_limit(options.strain_limit);
         const at::Tensor lead_in = motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames);
         for (int64_t t = 0; t < lead_in.size(0); ++t) stepper.step(lead_in[t]);
@@ -980,6 +1040,16 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
     }
     progress.update(static_cast<int>(k + 1));
   }
+  if (!fitted_characters.empty())
+    result.notes.push_back(
+        "apparel swing: fitted on another clip of each character (the first in file order that is not scored, else "
+        "the first other; its first " +
+        std::to_string(static_cast<int>(kSwingCalibrationSeconds)) +
+        " s, under the protocol scored: from rest for rollouts, in windows from its ground truth for the paper "
+        "protocol), as `amt animate` fits it on its calibration motion, for " +
+        std::to_string(fitted_characters.size()) +
+        " character(s) (--swing-calibration on; probe: from the rig's "
+        "response only).");
   if (short_clips > 0)
     result.notes.push_back(std::to_string(short_clips) + " clip(s) shorter than the " + std::to_string(options.window) +
                            "-frame window were left out of the paper protocol.");
@@ -1137,7 +1207,9 @@ std::string evaluation_json(const EvaluationResult& result) {
                   {"lead_in_frames", kDefaultLeadInFrames},
                   {"artist_style", result.options.artist_style},
                   {"rig_handles", result.options.rig_handles},
-                  {"swing_calibration", result.options.calibrate_swing}};
+                  {"swing_calibration", !result.options.calibrate_swing ? "off"
+                                        : result.options.fit_swing      ? "on"
+                                                                        : "probe"}};
   if (result.options.artist_style) {
     const ArtistStyleOptions& a = result.options.artist_style_options;
     j["artist_style"] = {{"subset", kHeldOutArtistStyle},

@@ -367,10 +367,13 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
                                          : std::string("off (`--strain-limit 0`): the apparel module's raw output"))
      << "\n";
   md << "- Apparel swing: "
-     << (result.options.calibrate_swing
-             ? std::string("calibrated on each character's own physics where its rig carries a response and the "
-                           "apparel module knows its training data's least lively apparel (`--swing-calibration on`)")
-             : std::string("the apparel module as trained (`--swing-calibration off`)"))
+     << (!result.options.calibrate_swing ? std::string("the apparel module as trained (`--swing-calibration off`)")
+         : result.options.fit_swing
+             ? std::string("fitted per apparel piece on another clip of each character's own physics, else "
+                           "calibrated on its rig's response (`--swing-calibration on`; notes below)")
+             : std::string("calibrated on each character's own physics where its rig carries a response and the "
+                           "apparel module knows its training data's least lively apparel (`--swing-calibration "
+                           "probe`)"))
      << "\n";
   md << "- Wall time: " << fixed(result.seconds, 1) << " s\n\n";
   md << "Metrics: PMD, PMD_a (ground-truth apparel vertices), PMD_b (body vertices) in cm, "

@@ -22,7 +22,6 @@
 #include "data_tools/formats/viewer_folder.h"
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs.h"
-#include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/motion.h"
 #include "infer/pmx_physics_player.h"
 
@@ -744,9 +743,9 @@ std::vector<MatrixX3f> own_physics_frames(const AnimateOptions& o, const Runtime
 
 // The learned apparel's swing fitted on the character's own physics (fit_swing_calibration) over the calibration
 // motion of the model folder (kCalibrationMotion): the uncalibrated module and the character's simulation run through
-// its first kCalibrationSeconds from the rest pose. Returns what the run reports, and sets bound.apparel_swing_gain;
-// an empty string (the gains left as they are) when the character has no physics amt simulates or the folder has no
-// calibration motion.
+// its first kSwingCalibrationSeconds from the rest pose. Returns what the run reports, and sets
+// bound.apparel_swing_gain; an empty string (the gains left as they are) when the character has no physics amt
+// simulates or the folder has no calibration motion.
 std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle& bundle,
                                      const RuntimeCharacter& character, BoundCharacter& bound) {
   const std::filesystem::path motion_path = std::filesystem::path(o.model_dir) / kCalibrationMotion;
@@ -757,35 +756,25 @@ std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle&
   const SourceMotion source = load_motion(spec);
   PlaybackOptions playback;
   playback.fps = kApparelStepFps;
-  playback.frames = int(std::lround(kCalibrationSeconds * kApparelStepFps));
+  playback.frames = int(std::lround(kSwingCalibrationSeconds * kApparelStepFps));
   playback.lead_in = std::max(1, o.playback.lead_in);
   const MotionPlayer player(source, character, playback);
   const std::vector<MatrixX3f> truth = own_physics_frames(o, character, source, player, playback.lead_in);
   if (truth.empty()) return "";
 
   c10::InferenceMode inference;
-  BoundCharacter plain = bound;
-  plain.apparel_swing_gain = at::Tensor();
-  PipelineStepper stepper(bundle, plain, rest_apparel_history(plain), PipelineStages::kBodyApparel);
-  stepper.set_strain_limit(o.strain_limit);
-  const Transforms first = player.frame(0);
-  const at::Tensor lead = motion_lead_in(transforms_tensor(first), plain.joints, playback.lead_in);
-  for (int64_t k = 0; k < lead.size(0); ++k) stepper.step(lead[k]);
-  const int64_t T = player.num_frames(), N_a = plain.num_apparel();
-  const at::Tensor A_rest = plain.V.index_select(0, plain.apparel_ids);
-  at::Tensor A_hat = at::empty({T, N_a, 3}, at::kFloat), S = at::empty({T, N_a, 3}, at::kFloat),
-             G = at::empty({T, N_a, 3}, at::kFloat);
+  const int64_t T = player.num_frames(), N_a = bound.num_apparel();
+  at::Tensor motion = at::empty({T, bound.joints.size(0), 3, 4}, at::kFloat), G = at::empty({T, N_a, 3}, at::kFloat);
   for (int64_t t = 0; t < T; ++t) {
-    const at::Tensor joints = transforms_tensor(player.frame(int(t)));
-    A_hat[t] = stepper.step_detailed(joints).A_hat;
-    S[t] = linear_blend_skinning(A_rest, plain.apparel_anchor_weights, joints.unsqueeze(0), plain.joints).squeeze(0);
+    motion[t] = transforms_tensor(player.frame(int(t)));
     const MatrixX3f& V = truth[size_t(t)];
-    AMT_CHECK(V.rows() == plain.num_vertices(), "swing calibration: the simulation gave ", V.rows(),
-              " vertices, expected ", plain.num_vertices());
+    AMT_CHECK(V.rows() == bound.num_vertices(), "swing calibration: the simulation gave ", V.rows(),
+              " vertices, expected ", bound.num_vertices());
     G[t] = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::TensorOptions().dtype(at::kFloat))
-               .index_select(0, plain.apparel_ids);
+               .index_select(0, bound.apparel_ids);
   }
-  const SwingCalibration fit = fit_swing_calibration(A_hat, S, G, plain.apparel_edges);
+  const at::Tensor lead = motion_lead_in(motion[0], bound.joints, playback.lead_in);
+  const SwingCalibration fit = fit_swing_on_motion(bundle, bound, lead, motion, G, o.strain_limit);
   bound.apparel_swing_gain = fit.gain;
   const at::Tensor g = fit.gain;
   char text[320];

@@ -214,9 +214,8 @@ inline constexpr float kApparelStepFps = 30.0f;
 inline constexpr float kPhysicsStepFps = 120.0f;
 
 /// The motion `amt animate` fits the learned apparel's swing on (fit_swing_calibration, models/pipeline.h) when the
-/// character carries physics amt simulates, a file of the model folder, and how much of it runs.
+/// character carries physics amt simulates, a file of the model folder; its first kSwingCalibrationSeconds run.
 inline constexpr const char* kCalibrationMotion = "calibration_motion.bvh";
-inline constexpr double kCalibrationSeconds = 4.0;
 
 /// Runs the whole job. Throws amt::Error on bad input (before any output is created where it can be
 /// checked up front); the output is complete or absent.

@@ -795,10 +795,60 @@ SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor
   out.piece_vertices = at::zeros({P}, at::kLong).index_add_(0, out.piece_of, at::ones({N_a}, at::kLong));
   // A piece the module leaves on its anchor (|Â - S| below a micrometre per vertex and frame) has nothing to scale.
   const at::Tensor moved = den.gt(1e-12 * double(A_hat.size(0)) * out.piece_vertices.to(at::kDouble));
-  out.piece_gain =
-      at::where(moved, num / den.clamp_min(1e-30), at::ones({P}, at::kDouble)).clamp(0.0, 1.0).to(at::kFloat);
+  const at::Tensor scale = at::where(moved, num / den.clamp_min(1e-30), at::ones({P}, at::kDouble)).clamp(0.0, 1.0);
+  // The module loses to rigid skinning on the piece (|Â - G|^2 > |S - G|^2) exactly when the scale is below 1/2: taken
+  // as fitted there; kept at 1 from 3/4 up, where the module clearly wins (on lively rigs the scale fitted on one
+  // motion falls below 1 with the module's phase, and 1 measured better on other motions); linear between.
+  out.piece_gain = at::where(scale.le(0.5), scale, (2.0 * scale - 0.5).clamp_max(1.0)).to(at::kFloat);
   out.gain = out.piece_gain.index_select(0, out.piece_of);
   return out;
+}
+
+SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundCharacter& character,
+                                     const at::Tensor& lead_in, const at::Tensor& motion, const at::Tensor& truth,
+                                     float strain_limit, int64_t window) {
+  constexpr int64_t kHistoryFrames = 3;
+  const int64_t T = motion.dim() == 4 ? motion.size(0) : -1, N_a = character.num_apparel();
+  AMT_CHECK(motion.dim() == 4 && lead_in.dim() == 4 && T > 0,
+            "swing calibration: motion and lead-in: expected (T, J, 3, 4) with T > 0, found ", motion.sizes(), " and ",
+            lead_in.sizes());
+  AMT_CHECK(truth.dim() == 3 && truth.size(0) == T && truth.size(1) == N_a && truth.size(2) == 3,
+            "swing calibration: the simulation's apparel: expected (", T, ", ", N_a, ", 3), found ", truth.sizes());
+  AMT_CHECK(window == 0 || (window > kHistoryFrames && window <= T), "swing calibration: window: expected 0 or ",
+            kHistoryFrames + 1, "..", T, " frames (the motion's length), found ", window);
+  c10::InferenceMode inference;
+  BoundCharacter plain = character;
+  plain.apparel_swing_gain = at::Tensor();
+  const at::Tensor G_all = truth.to(at::kFloat);
+  PipelineStepper stepper(bundle, plain, rest_apparel_history(plain), PipelineStages::kBodyApparel);
+  stepper.set_strain_limit(strain_limit);
+  // The frames the module predicts: all after the lead-in, or each window's after its history (the windows' predicted
+  // frames follow on from each other: window_start marks where the stepper restarts from the truth).
+  std::vector<int64_t> frames;
+  std::vector<uint8_t> window_start;
+  if (window == 0) {
+    for (int64_t k = 0; k < lead_in.size(0); ++k) stepper.step(lead_in[k]);
+    for (int64_t t = 0; t < T; ++t) frames.push_back(t), window_start.push_back(0);
+  } else {
+    for (int64_t s = 0; s + window <= T; s += window - kHistoryFrames)
+      for (int64_t t = s + kHistoryFrames; t < s + window; ++t)
+        frames.push_back(t), window_start.push_back(t == s + kHistoryFrames);
+  }
+  const int64_t F = static_cast<int64_t>(frames.size());
+  const at::Tensor A_rest = plain.V.index_select(0, plain.apparel_ids);
+  // Frame by frame: linear_blend_skinning's memory is O(T N 12) over a whole motion.
+  at::Tensor A_hat = at::empty({F, N_a, 3}, at::kFloat), S = at::empty({F, N_a, 3}, at::kFloat),
+             G = at::empty({F, N_a, 3}, at::kFloat);
+  for (int64_t k = 0; k < F; ++k) {
+    const int64_t t = frames[size_t(k)];
+    if (window_start[size_t(k)])
+      stepper.reset(G_all.narrow(0, t - kHistoryFrames, kHistoryFrames),
+                    motion.narrow(0, t - kHistoryFrames, kHistoryFrames));
+    A_hat[k] = stepper.step_detailed(motion[t]).A_hat;
+    S[k] = linear_blend_skinning(A_rest, plain.apparel_anchor_weights, motion[t].unsqueeze(0), plain.joints)[0];
+    G[k] = G_all[t];
+  }
+  return fit_swing_calibration(A_hat, S, G, plain.apparel_edges);
 }
 
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

@@ -416,16 +416,34 @@ SwingCalibration swing_calibration(const BoundCharacter& character, double swing
 double swing_reference(const std::vector<SwingCalibration>& characters);
 
 /// The swing calibration fitted on the character's own physics over a calibration motion: the module (uncalibrated)
-/// and the character's own simulation run through the same motion, and each apparel piece gets the gain that brings
+/// and the character's own simulation run through the same motion, and each apparel piece gets the scale that brings
 /// the module's offsets from the anchor skinning closest to the simulation's, in least squares:
-/// gain = clamp(sum <Â - S, G - S> / sum |Â - S|^2, 0, 1) over the piece's vertices and the frames (1 for a piece the
-/// module does not move). A module whose swing on a piece is right keeps it (gain about 1); one whose swing is
-/// unrelated to the rig's is calmed towards rigid skinning (gain about 0), the better of the two by the same measure.
+/// scale = clamp(sum <Â - S, G - S> / sum |Â - S|^2, 0, 1) over the piece's vertices and the frames (1 for a piece the
+/// module does not move). The gain is the scale where the module loses to rigid skinning on the motion (scale < 1/2,
+/// the same as |Â - G|^2 > |S - G|^2), 1 where it clearly wins (scale >= 3/4) and 2 scale - 1/2 between: a piece
+/// whose learned swing is unrelated to the rig's is calmed towards rigid skinning, one whose swing follows it keeps it.
 ///   A_hat, S, G (T, N_a, 3): the module's apparel, its anchor skinning and the simulation's, on the same frames;
 ///   apparel_edges (E_a, 2) int64 positions in the apparel list (the pieces). Throws amt::Error on shapes that do
 ///   not match or non-finite input.
 SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor& S, const at::Tensor& G,
                                        const at::Tensor& apparel_edges);
+
+/// How much of a motion the fitted swing calibration runs (fit_swing_on_motion): `amt animate`'s calibration motion,
+/// `amt eval`'s other clip of the character.
+inline constexpr double kSwingCalibrationSeconds = 4.0;
+
+/// fit_swing_calibration on one motion: the module (the character's own gain set aside) with
+/// PipelineStages::kBodyApparel and the stretch limit `strain_limit` (PipelineStepper::set_strain_limit) through
+/// `motion` (T, J, 3, 4), beside the anchor skinning of each frame, fitted to `truth` (T, N_a, 3), the simulation's
+/// apparel on the same frames. With window = 0 the module rolls out from the rest apparel over `lead_in`
+/// (L, J, 3, 4) and then the whole motion (`amt animate`, and `amt eval`'s rollout protocol); with window > 3 it
+/// predicts windows of `window` frames at a stride of window - 3, each started from the truth's 3 frames before it
+/// (the paper protocol; lead_in unused), and the fit sees the predicted frames. What `amt animate` does with its
+/// calibration motion and `amt eval` with another clip of the character. Throws amt::Error on shapes that do not
+/// match or a motion too short for one window.
+SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundCharacter& character,
+                                     const at::Tensor& lead_in, const at::Tensor& motion, const at::Tensor& truth,
+                                     float strain_limit = kDefaultStrainLimit, int64_t window = 0);
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

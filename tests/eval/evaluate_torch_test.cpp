@@ -373,6 +373,44 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
   }
 }
 
+// --swing-calibration on: each character's swing is fitted on another of its clips (the train character's unscored
+// train walk; the test character's two scored walks on each other). The ground truth is rigid skinning, so the
+// fitted gains calm a fresh module's swing towards its anchors; probe (no rig response here) runs it as trained.
+TEST(Evaluate, SwingFittedOnAnotherClipOfEachCharacter) {
+  test::use_one_thread();
+  const std::string data = test::test_directory("eval_fit_swing") + "/lbs.h5";
+  write_lbs_dataset(data, 17, 1, 2);
+  const std::string dir = test::write_fresh_model(test::test_directory("eval_fit_swing_bundle"), 3,
+                                                  canonical_joint_names(), /*local_apparel=*/true);
+  const ModelBundle bundle = load_model_bundle(dir);
+  EvaluateOptions options;
+  options.methods = {"skinning_baseline", "body_apparel"};
+  options.paper = false;
+  options.progress = false;
+  options.penetration = false;
+  const EvaluationResult fitted = evaluate_model(bundle, {data}, options);
+  options.fit_swing = false;
+  const EvaluationResult probe = evaluate_model(bundle, {data}, options);
+  const auto has_note = [](const EvaluationResult& r) {
+    return std::any_of(r.notes.begin(), r.notes.end(), [](const std::string& note) {
+      return note.find("apparel swing: fitted on another clip of each character") != std::string::npos &&
+             note.find("for 2 character(s)") != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(has_note(fitted));
+  EXPECT_FALSE(has_note(probe));
+  for (const char* subset : {kHeldOutCharacters, kHeldOutClips}) {
+    const double as_trained = probe.find("body_apparel", "rollout", subset)->scores.pmd_a;
+    const double calmed = fitted.find("body_apparel", "rollout", subset)->scores.pmd_a;
+    EXPECT_GT(as_trained, 0.01) << subset;
+    EXPECT_LT(calmed, 0.5 * as_trained) << subset;
+    // The rule is not the module's: the skinning baseline scores the same either way.
+    EXPECT_DOUBLE_EQ(fitted.find("skinning_baseline", "rollout", subset)->scores.pmd_a,
+                     probe.find("skinning_baseline", "rollout", subset)->scores.pmd_a)
+        << subset;
+  }
+}
+
 // A test character with two more apparel triangles beside its first apparel vertex v, 1 cm sides: T1 = (v, v + x,
 // v + y) and T2 = (v + x, v + y, v + x + y) on copies of T1's two far corners (a seam of two pairs), skinned as v;
 // a 4-frame walk; the ground truth is LBS. With `predicted`, T2 is scaled by 1.6 about its first corner in frame 1

@@ -85,6 +85,12 @@ TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroOne) 
   e -= dp * ((e * dp).sum() / (dp * dp).sum());
   h.narrow(1, 0, 2).add_(e);
   EXPECT_NEAR(fit_swing_calibration(S + d, S, S + h, edges).piece_gain[0].item<float>(), 0.5f, 1e-4f);
+  // Scales above 1/2 (the module beats rigid skinning): 0.6 -> 2 x 0.6 - 0.5 = 0.7, 0.8 -> 1; 0.3 stays.
+  for (const auto& [scale, gain] : std::vector<std::pair<double, float>>{{0.3, 0.3f}, {0.6, 0.7f}, {0.8, 1.0f}}) {
+    at::Tensor k = g.clone();
+    k.narrow(1, 0, 2).copy_(d.narrow(1, 0, 2) * scale);
+    EXPECT_NEAR(fit_swing_calibration(S + d, S, S + k, edges).piece_gain[0].item<float>(), gain, 1e-4f) << scale;
+  }
 
   // Bad input: shapes that do not match, an edge out of range, a non-finite position.
   EXPECT_THROW(fit_swing_calibration(S + d, S.narrow(0, 0, 2), S + g, edges), Error);
@@ -169,6 +175,63 @@ void check_gained_stepper(const Bound& b) {
 TEST(SwingCalibration, TheStepperScalesWhatTheModuleShowsNotItsState) {
   check_gained_stepper(bound_micro("swing_stepper_vertices", 0.0));
   check_gained_stepper(bound_micro("swing_stepper_handles", 0.05));
+}
+
+// fit_swing_on_motion rolls the module out as the stepper does, its own gain set aside: against its own rollout the
+// gain is 1, against the anchor skinning 0, against S + 0.4 (Â - S) 0.4, on every piece the module moves; in the
+// paper protocol's windows started from the truth, the same.
+TEST(SwingCalibration, FittedOnAMotionRecoversTheScaleOfTheModulesOwnRollout) {
+  const Bound b = bound_micro("swing_fit_motion", 0.05);
+  const int64_t T = b.motion.size(0), N_a = b.character.num_apparel();
+  ASSERT_GT(N_a, 0);
+  const at::Tensor lead = motion_lead_in(b.motion[0], b.character.joints, 3);
+  PipelineStepper stepper(b.bundle, b.character, rest_apparel_history(b.character), PipelineStages::kBodyApparel);
+  for (int64_t k = 0; k < lead.size(0); ++k) stepper.step(lead[k]);
+  const at::Tensor A_rest = b.character.V.index_select(0, b.character.apparel_ids);
+  at::Tensor A = at::empty({T, N_a, 3}), S = at::empty({T, N_a, 3});
+  for (int64_t t = 0; t < T; ++t) {
+    A[t] = stepper.step_detailed(b.motion[t]).A_hat;
+    S[t] = linear_blend_skinning(A_rest, b.character.apparel_anchor_weights, b.motion[t].unsqueeze(0),
+                                 b.character.joints)[0];
+  }
+  const SwingCalibration own = fit_swing_on_motion(b.bundle, b.character, lead, b.motion, A);
+  ASSERT_EQ(own.gain.size(0), N_a);
+  EXPECT_GT(own.gain.min().item<float>(), 0.9999f);
+  // The pieces the module moves (offsets of more than 1e-4 m somewhere): the truth between S and Â scales them.
+  const at::Tensor moved = (A - S).abs().amax({0, 2}).gt(1e-4f);
+  ASSERT_TRUE(moved.any().item<bool>());
+  const SwingCalibration part = fit_swing_on_motion(b.bundle, b.character, lead, b.motion, S + 0.4f * (A - S));
+  const SwingCalibration none = fit_swing_on_motion(b.bundle, b.character, lead, b.motion, S);
+  EXPECT_LT((part.gain.masked_select(moved) - 0.4f).abs().max().item<float>(), 1e-3f);
+  EXPECT_LT(none.gain.masked_select(moved).abs().max().item<float>(), 1e-3f);
+  // Windows of 4 frames (1 predicted each, stride 1) started from the truth's 3 frames before: a truth whose every
+  // frame from the 4th on is the module's prediction from the truth before it gives gain 1; the anchor skinning as
+  // truth, 0 on every piece the module moves away from it.
+  at::Tensor chained = A.clone();
+  PipelineStepper one_step(b.bundle, b.character, A.narrow(0, 0, 3), PipelineStages::kBodyApparel);
+  for (int64_t t = 3; t < T; ++t) {
+    one_step.reset(chained.narrow(0, t - 3, 3), b.motion.narrow(0, t - 3, 3));
+    chained[t] = one_step.step_detailed(b.motion[t]).A_hat;
+  }
+  EXPECT_GT(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, chained, kDefaultStrainLimit, 4)
+                .gain.min()
+                .item<float>(),
+            0.9999f);
+  const at::Tensor on_anchor =
+      fit_swing_on_motion(b.bundle, b.character, lead, b.motion, S, kDefaultStrainLimit, 4).gain;
+  EXPECT_TRUE(on_anchor.lt(1e-3f).any().item<bool>());
+  EXPECT_TRUE((on_anchor.lt(1e-3f) | on_anchor.eq(1.0f)).all().item<bool>());
+  EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, S, kDefaultStrainLimit, 3), Error);
+  EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, S, kDefaultStrainLimit, T + 1), Error);
+  // The character's own gain (here 0: what it shows is S) does not enter the fit: the module runs as trained.
+  BoundCharacter calmed = b.character;
+  calmed.apparel_swing_gain = at::zeros({N_a});
+  EXPECT_TRUE(at::allclose(fit_swing_on_motion(b.bundle, calmed, lead, b.motion, S + 0.4f * (A - S)).gain, part.gain,
+                           0.0, 1e-6));
+  // Bad input: a truth of other frames or vertices, a motion without frames.
+  EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, A.narrow(0, 0, T - 1)), Error);
+  EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, A.narrow(1, 0, N_a - 1)), Error);
+  EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion.narrow(0, 0, 0), A.narrow(0, 0, 0)), Error);
 }
 
 TEST(SwingCalibration, BindCalmsEachPieceOfARigStifferThanTheReference) {
