@@ -921,7 +921,14 @@ AnimateSummary animate(const AnimateOptions& o) {
                                   bundle.apparel_dynamics_for(bind.bound.given_weights)->options.swing_reference);
   if (calibrate) {
     const auto fit_start = Clock::now();
-    const std::string fitted = fit_swing_on_own_physics(o, bundle, character, bind.bound);
+    // A calibration that cannot run (a damaged calibration motion, a rig whose physics does not simulate) leaves
+    // the probe's calibration, and the run says why: the user asked for the learned apparel, not for its physics.
+    std::string fitted;
+    try {
+      fitted = fit_swing_on_own_physics(o, bundle, character, bind.bound);
+    } catch (const Error& e) {
+      s.swing_source += " (not fitted on the rig's own physics: " + std::string(e.what()) + ")";
+    }
     if (!fitted.empty()) {
       s.swing_source = fitted;
       s.calibration_seconds = seconds_since(fit_start);

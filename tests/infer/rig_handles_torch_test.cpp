@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -220,6 +221,16 @@ TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingDa
                             "calibration_motion.bvh; --swing-calibration auto)"),
             std::string::npos)
       << fitted.out;
+  // A damaged calibration motion leaves the probe's calibration, and the run names the file.
+  std::ofstream(r.dir / "model" / kCalibrationMotion, std::ios::trunc) << "HIERARCHY\nROOT Hips\n{\n";
+  const test::CommandResult damaged = run("damaged.glb", {});
+  ASSERT_EQ(damaged.status, 0) << damaged.err;
+  EXPECT_NE(damaged.out.find("apparel swing: calibrated on the rig's own physics (--swing-calibration auto): 100 % of "
+                             "the apparel calmed"),
+            std::string::npos)
+      << damaged.out;
+  EXPECT_NE(damaged.out.find("(not fitted on the rig's own physics: "), std::string::npos) << damaged.out;
+  EXPECT_NE(damaged.out.find("calibration_motion.bvh"), std::string::npos) << damaged.out;
   const test::CommandResult off = run("off.glb", {"--swing-calibration", "off"});
   ASSERT_EQ(off.status, 0) << off.err;
   EXPECT_NE(off.out.find("apparel swing: as trained (--swing-calibration off)"), std::string::npos) << off.out;
