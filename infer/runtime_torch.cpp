@@ -469,6 +469,16 @@ AnimateSummary start_simulated_path(const AnimateOptions& o, const std::string& 
   return s;
 }
 
+// The PMX model of `o.character` with its own physics (its joint map, kPhysicsStepFps steps): what `amt animate
+// --apparel physics` plays and the swing calibration fits on.
+std::unique_ptr<PmxPhysicsPlayer> open_pmx_physics(const AnimateOptions& o) {
+  std::optional<JointMapFile> joint_map;
+  if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
+  PmxSimulationOptions simulation;
+  simulation.fps = kPhysicsStepFps;
+  return std::make_unique<PmxPhysicsPlayer>(o.character.spec, joint_map, simulation);
+}
+
 // `amt animate --apparel physics`: the PMX model's own physics under the motion, skinned by its own rig, streamed
 // to the output. No network and no bind: the model folder is not read.
 AnimateSummary animate_with_physics(const AnimateOptions& o) {
@@ -485,11 +495,8 @@ AnimateSummary animate_with_physics(const AnimateOptions& o) {
   const RuntimeCharacter character = load_character(o.character);
   const SourceMotion source = load_motion(o.motion);
   const MotionPlayer player(source, character, o.playback);
-  std::optional<JointMapFile> joint_map;
-  if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
-  PmxSimulationOptions simulation;
-  simulation.fps = kPhysicsStepFps;
-  PmxPhysicsPlayer physics(path, joint_map, simulation);
+  const std::unique_ptr<PmxPhysicsPlayer> player_physics = open_pmx_physics(o);
+  PmxPhysicsPlayer& physics = *player_physics;
   const PmxCharacter& pmx = physics.character();
   int apparel = 0;
   for (const uint8_t m : pmx.apparel_mask) apparel += m;
@@ -614,6 +621,26 @@ class AvatarWriter : public FrameWriter {
   std::vector<Transforms> frames_;
 };
 
+// Starts `springs` as the spring-bone path starts a clip at `fps`: settled for a second at the rest pose, then
+// blended into `first` over the lead-in (its frames count at 30 fps, so that the springs start the clip in the same
+// state at every rate); without a lead-in, settled at `first`. Returns the file skeleton's transforms of the first
+// frame.
+Transforms start_spring_bones(SpringBoneSimulator& springs, const RuntimeCharacter& character, const Transforms& first,
+                              int lead_in, double fps) {
+  if (lead_in <= 0) {
+    springs.reset(file_pose(character, first));
+    return springs.advance(file_pose(character, first), 1.0);
+  }
+  const double frame_seconds = 1.0 / fps;
+  const Transforms rest = file_rest_pose(character);
+  springs.reset(rest);
+  springs.advance(rest, 1.0);
+  const int n = std::max(1, int(std::lround(double(lead_in) * fps / kApparelStepFps)));
+  for (int k = 1; k < n; ++k)  // blend weights k / n
+    springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), frame_seconds);
+  return springs.advance(file_pose(character, first), frame_seconds);
+}
+
 // `amt animate --apparel spring-bones`: a VRM avatar's own spring bones under the motion, as the VRM specification
 // simulates them, at a fixed internal step (kSpringStepSeconds) whatever the output frame rate. No network, no bind.
 AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
@@ -669,19 +696,7 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   const double frame_seconds = 1.0 / double(s.fps);
   const Transforms first = player.frame(0);
   s.lead_in = std::max(0, o.playback.lead_in);
-  Transforms first_output;
-  if (s.lead_in > 0) {
-    const Transforms rest = file_rest_pose(character);
-    springs.reset(rest);
-    springs.advance(rest, 1.0);
-    const int n = std::max(1, int(std::lround(double(s.lead_in) * double(s.fps) / kApparelStepFps)));
-    for (int k = 1; k < n; ++k)  // blend weights k / n
-      springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), frame_seconds);
-    first_output = springs.advance(file_pose(character, first), frame_seconds);
-  } else {
-    springs.reset(file_pose(character, first));
-    first_output = springs.advance(file_pose(character, first), 1.0);
-  }
+  const Transforms first_output = start_spring_bones(springs, character, first, s.lead_in, s.fps);
 
   stream_simulated_frames(o, character, player, first, info, *writer, "spring bones", job_start, s,
                           [&](int t, const Transforms& T, MatrixX3f& V) {
@@ -693,8 +708,6 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   return s;
 }
 
-}  // namespace
-
 // The character's own apparel physics (a PMX model's rigid bodies, a VRM avatar's spring bones) on `player`'s frames
 // (at kApparelStepFps), started from the rest pose through `lead_in` frames as the simulated paths start a clip:
 // every vertex per frame. Empty when the character has no physics amt simulates.
@@ -705,35 +718,26 @@ std::vector<MatrixX3f> own_physics_frames(const AnimateOptions& o, const Runtime
   std::string e = std::filesystem::path(o.character.spec).extension().string();
   std::transform(e.begin(), e.end(), e.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
   if (e == ".pmx" && character.rig_bones_with_response) {
-    std::optional<JointMapFile> joint_map;
-    if (!o.character.joint_map.empty()) joint_map = read_joint_map(o.character.joint_map);
-    PmxSimulationOptions simulation;
-    simulation.fps = kPhysicsStepFps;
-    PmxPhysicsPlayer physics(o.character.spec, joint_map, simulation);
+    const std::unique_ptr<PmxPhysicsPlayer> physics = open_pmx_physics(o);
     PlaybackOptions playback;
     playback.lead_in = lead_in;
     const MotionPlayer clock =
         step_clock(source, character, playback, player.num_frames(), kApparelStepFps, kPhysicsStepFps);
-    physics.start(first, int(std::lround(lead_in * double(kPhysicsStepFps) / kApparelStepFps)));
+    physics->start(first, int(std::lround(lead_in * double(kPhysicsStepFps) / kApparelStepFps)));
     int taken = -1;
-    for (int t = 0; t < player.num_frames(); ++t) {
+    for (int t = 0; t < player.num_frames(); ++t) {  // every frame at kApparelStepFps falls on a step
       const StepPosition p = step_position(t, kApparelStepFps, kPhysicsStepFps, clock.num_frames());
-      while (taken < p.k0) physics.advance(clock.frame(++taken));
-      physics.skin(frames[size_t(t)]);
+      while (taken < p.k0) physics->advance(clock.frame(++taken));
+      physics->skin(frames[size_t(t)]);
     }
     return frames;
   }
   if (character.springs && character.springs->num_joints() > 0) {
     SpringBoneSimulator springs(character.file_skeleton, *character.springs);
-    const double dt = 1.0 / double(kApparelStepFps);
-    const Transforms rest = file_rest_pose(character);
-    springs.reset(rest);
-    springs.advance(rest, 1.0);
-    const int n = std::max(1, lead_in);
-    for (int k = 1; k < n; ++k)
-      springs.advance(file_pose(character, lead_in_pose(character.skeleton, first, k - 1, n - 1)), dt);
+    const Transforms first_pose = start_spring_bones(springs, character, first, lead_in, kApparelStepFps);
     for (int t = 0; t < player.num_frames(); ++t) {
-      const Transforms M = springs.advance(file_pose(character, player.frame(t)), dt);
+      const Transforms M =
+          t == 0 ? first_pose : springs.advance(file_pose(character, player.frame(t)), 1.0 / kApparelStepFps);
       linear_blend_skinning(character.mesh.V, character.file_weights, M, frames[size_t(t)]);
     }
     return frames;
@@ -786,6 +790,8 @@ std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle&
                 g.min().item<double>());
   return text;
 }
+
+}  // namespace
 
 AnimateSummary animate(const AnimateOptions& o) {
   AMT_CHECK(o.apparel.empty() || o.apparel == "learned" || o.apparel == "physics" || o.apparel == "spring-bones",
