@@ -328,40 +328,50 @@ void bench_segmenter(const BenchOptions& o) {
   };
   const char* kinds[4] = {"as built", "bare body", "open parts", "bare open parts"};
   Score sum[4];
-  int count = 0;
+  int count[4] = {0, 0, 0, 0};
+  const auto print = [&](int k, const Score& s) {
+    if (k == 1 || k == 3)
+      std::printf("  %s called %.1f %%;", kinds[k], 100 * s.called);
+    else
+      std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], s.iou, 100 * s.called, 100 * s.truth);
+  };
   for (const std::string& shard : resolve_shards(o.data)) {
     const DatasetReader reader(shard);
     for (const std::string& name : reader.character_names()) {
       if (reader.character_summary(name).split != o.split) continue;
       const CharacterData data = reader.read_character(name);
       const SegmenterExample e{data.mesh, data.skeleton, data.body_weights, data.apparel_mask};
-      const SegmenterExample open = open_parts_example(e);
-      const Score s[4] = {score(e), score(bare_body_example(e)), score(open), score(open_parts_example(e, true))};
-      std::printf("segmenter %-16s %6d vertices; open parts %6d:", name.c_str(), e.mesh.num_vertices(),
-                  open.mesh.num_vertices());
-      for (int k = 0; k < 4; ++k) {
-        const bool bare = k == 1 || k == 3;
-        if (bare)
-          std::printf("  %s called %.1f %%;", kinds[k], 100 * s[k].called);
-        else
-          std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], s[k].iou, 100 * s[k].called,
-                      100 * s[k].truth);
-        sum[k].iou += s[k].iou, sum[k].called += s[k].called, sum[k].truth += s[k].truth;
+      // The bare body and the open-parts remake take the body from the builder's layout; an artist's model (a PMX or
+      // VRM character's dataset) is scored as built only.
+      const bool remade = builder_layout(e);
+      std::vector<std::pair<int, Score>> scores{{0, score(e)}};
+      std::string open_count = "-";
+      if (remade) {
+        const SegmenterExample open = open_parts_example(e);
+        open_count = std::to_string(open.mesh.num_vertices());
+        scores.push_back({1, score(bare_body_example(e))});
+        scores.push_back({2, score(open)});
+        scores.push_back({3, score(open_parts_example(e, true))});
       }
+      std::printf("segmenter %-16s %6d vertices; open parts %6s:", name.c_str(), e.mesh.num_vertices(),
+                  open_count.c_str());
+      for (const auto& [k, s] : scores) {
+        print(k, s);
+        sum[k].iou += s.iou, sum[k].called += s.called, sum[k].truth += s.truth;
+        ++count[k];
+      }
+      if (!remade) std::printf("  not laid out as the builder's characters: scored as built only;");
       std::printf("\n");
       std::fflush(stdout);
-      ++count;
     }
   }
-  AMT_CHECK(count > 0, "bench --suite segmenter: no ", o.split, " characters in the given data");
-  std::printf("segmenter mean over %d:", count);
+  AMT_CHECK(count[0] > 0, "bench --suite segmenter: no ", o.split, " characters in the given data");
+  std::printf("segmenter mean over %d:", count[0]);
   for (int k = 0; k < 4; ++k) {
-    const bool bare = k == 1 || k == 3;
-    if (bare)
-      std::printf("  %s called %.1f %%;", kinds[k], 100 * sum[k].called / count);
-    else
-      std::printf("  %s IoU %.3f, called %.1f %% (%.1f %%);", kinds[k], sum[k].iou / count, 100 * sum[k].called / count,
-                  100 * sum[k].truth / count);
+    if (count[k] == 0) continue;
+    const double n = count[k];
+    print(k, Score{sum[k].iou / n, sum[k].called / n, sum[k].truth / n});
+    if (count[k] != count[0]) std::printf(" (over %d)", count[k]);
   }
   std::printf("\n");
 }

@@ -69,6 +69,14 @@ SegmenterExample bare_body_example(const SegmenterExample& e) {
   return restricted(e, ids, /*zero_mask=*/true);
 }
 
+bool builder_layout(const SegmenterExample& e) {
+  const auto& names = canonical_joint_names();
+  if (e.mesh.num_vertices() == 0 || e.skeleton.names != std::vector<std::string>(names.begin(), names.end()))
+    return false;
+  int32_t largest = 0;
+  return parts_of(e.mesh, largest)[0] == largest;
+}
+
 SegmenterExample open_parts_example(const SegmenterExample& e, bool bare, const OpenPartsOptions& options) {
   const auto& names = canonical_joint_names();
   AMT_CHECK(e.skeleton.names == std::vector<std::string>(names.begin(), names.end()),

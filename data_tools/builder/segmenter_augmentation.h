@@ -43,6 +43,11 @@ SegmenterExample mirrored_example(const SegmenterExample& example);
 /// as one closed surface).
 SegmenterExample bare_body_example(const SegmenterExample& example);
 
+/// Whether the example is laid out as the builder's characters are, which bare_body_example and open_parts_example
+/// assume: the canonical skeleton, and the body (the largest connected part) first, from vertex 0. An artist's model
+/// read from a file is not.
+bool builder_layout(const SegmenterExample& example);
+
 /// The example remade of open, overlapping body parts (open_parts_character) from what a dataset
 /// shard holds: the body is the run of leading vertices of the largest connected part, the weights'
 /// columns are the 22 canonical joints. `bare` keeps the body parts and the cap alone (mask all zero).

@@ -5,6 +5,7 @@
 
 #include "data_tools/geometry/error.h"
 #include "data_tools/geometry/segmentation_features.h"
+#include "data_tools/geometry/skeleton.h"
 
 namespace amt {
 namespace {
@@ -93,6 +94,32 @@ TEST(SegmenterAugmentation, BareBodyKeepsTheLargestPartWithAnAllZeroMask) {
 
 TEST(SegmenterAugmentation, OpenPartsNeedTheCanonicalSkeleton) {
   EXPECT_THROW(open_parts_example(hips()), Error);
+}
+
+// The builder's layout (what bare_body_example and open_parts_example read the body from): the canonical skeleton and
+// the largest part first. An artist's model has neither.
+TEST(SegmenterAugmentation, BuilderLayoutIsTheCanonicalSkeletonWithTheLargestPartFirst) {
+  SegmenterExample e = hips();
+  EXPECT_FALSE(builder_layout(e));  // three joints of its own
+  const auto& names = canonical_joint_names();
+  e.skeleton.names.assign(names.begin(), names.end());
+  // Two parts of one face each: a tie, and the first part counts as the largest.
+  EXPECT_TRUE(builder_layout(e));
+  // A second face on the right triangle makes it the largest part: the body no longer comes first.
+  e.mesh.V.conservativeResize(7, 3);
+  e.mesh.V.row(6) << -0.1f, 0.8f, 0;
+  e.mesh.F.conservativeResize(3, 3);
+  e.mesh.F.row(2) << 3, 6, 4;
+  EXPECT_FALSE(builder_layout(e));
+  // The same mesh with the larger part moved to the front (faces renumbered) is in the builder's layout.
+  SegmenterExample front = e;
+  const int order[7] = {3, 4, 5, 6, 0, 1, 2};  // new vertex k is old vertex order[k]
+  int place[7];
+  for (int k = 0; k < 7; ++k) front.mesh.V.row(k) = e.mesh.V.row(order[k]), place[order[k]] = k;
+  for (int f = 0; f < 3; ++f)
+    for (int c = 0; c < 3; ++c) front.mesh.F(f, c) = place[e.mesh.F(f, c)];
+  EXPECT_TRUE(builder_layout(front));
+  EXPECT_FALSE(builder_layout(SegmenterExample{}));
 }
 
 }  // namespace
