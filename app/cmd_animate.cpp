@@ -102,7 +102,7 @@ void add_animate_command(CLI::App& app) {
   cmd->add_option("--swing-calibration", o->swing_calibration,
                   "auto: scale the learned apparel's swing, per piece, to the character's own physics when it has "
                   "some (a PMX model's rigid bodies, a VRM avatar's spring bones: fitted over the model folder's "
-                  "calibration_motion.bvh; a dataset's rig: its probe response); off: the apparel module as trained")
+                  "calibration_motion*.bvh; a dataset's rig: its probe response); off: the apparel module as trained")
       ->check(CLI::IsMember({"auto", "off"}))
       ->capture_default_str();
   cmd->add_flag("--no-resolve-penetration", *no_resolve, "Do not push apparel out of the body");

@@ -207,8 +207,8 @@ struct CharacterCache {
   MatrixX2i apparel_E;  // apparel_edges of E: tearing and apparel ELS
   MeshConstruction construction;
   // The character's clips in its shard, in file order (listed on first use), and its binds with the swing fitted on
-  // one of them (EvaluateOptions::fit_swing): (bind, calibration clip, window: 0 rollout, else the paper protocol's) ->
-  // bind.
+  // some of them (EvaluateOptions::fit_swing): (bind, calibration clips, window: 0 rollout, else the paper protocol's)
+  // -> bind.
   std::optional<std::vector<std::string>> own_clips;
   std::map<std::tuple<std::string, std::string, int64_t>, BoundCharacter> fitted;
 
@@ -422,44 +422,51 @@ class ClipScorer {
   std::pair<double, double>* amplitude_ = nullptr;
 };
 
-// The clip of character c whose simulation fits the apparel swing while `clip` is scored (EvaluateOptions::fit_swing):
-// the character's first clip in file order that the evaluation does not score (`scored`: (shard, clip)), else its
-// first clip other than `clip`; empty when it has no other clip.
-std::string calibration_clip(CharacterCache& c, const DatasetReader& reader, int shard, const std::string& clip,
-                             const std::set<std::pair<int, std::string>>& scored) {
+// The clips of character c whose simulation fits the apparel swing while `clip` is scored (EvaluateOptions::fit_swing),
+// at most kSwingCalibrationClips: the character's first clips in file order that the evaluation does not score
+// (`scored`: (shard, clip)), else its first clips other than `clip`; empty when it has no other clip.
+std::vector<std::string> calibration_clips(CharacterCache& c, const DatasetReader& reader, int shard,
+                                           const std::string& clip,
+                                           const std::set<std::pair<int, std::string>>& scored) {
   if (!c.own_clips) {
     c.own_clips.emplace();
     for (const std::string& name : reader.clip_names())
       if (reader.clip_info(name).character == c.name) c.own_clips->push_back(name);
   }
-  std::string other;
+  std::vector<std::string> unscored, other;
   for (const std::string& name : *c.own_clips) {
-    if (!scored.count({shard, name})) return name;
-    if (other.empty() && name != clip) other = name;
+    if (!scored.count({shard, name}) && int(unscored.size()) < kSwingCalibrationClips) unscored.push_back(name);
+    if (name != clip && int(other.size()) < kSwingCalibrationClips) other.push_back(name);
   }
-  return other;
+  return unscored.empty() ? other : unscored;
 }
 
-// Bind `b` (key `bind`) of character c with its swing fitted on the first kSwingCalibrationSeconds of clip
-// `calibration`, its ground truth, under the protocol it is scored with (fit_swing_on_motion): window 0, the rollout
-// after the lead-in from the rest pose; window > 0, the paper protocol's windows. `b` itself when the clip is shorter
-// than a window.
+// Bind `b` (key `bind`) of character c with its swing fitted on the first kSwingCalibrationSeconds of the clips
+// `calibration`, their ground truth pooled, under the protocol it is scored with (fit_swing_on_motions): window 0, the
+// rollout after the lead-in from the rest pose; window > 0, the paper protocol's windows. Clips shorter than a window
+// are left out; `b` itself when every clip is.
 const BoundCharacter& fitted_bind(const ModelBundle& bundle, CharacterCache& c, const DatasetReader& reader,
-                                  const std::string& bind, const BoundCharacter& b, const std::string& calibration,
-                                  int64_t window, float strain_limit, int64_t J) {
-  const auto key = std::make_tuple(bind, calibration, window);
+                                  const std::string& bind, const BoundCharacter& b,
+                                  const std::vector<std::string>& calibration, int64_t window, float strain_limit,
+                                  int64_t J) {
+  std::string names;
+  for (const std::string& name : calibration) names += name + "\n";
+  const auto key = std::make_tuple(bind, names, window);
   if (const auto it = c.fitted.find(key); it != c.fitted.end()) return it->second;
-  const ClipInfo info = reader.clip_info(calibration);
-  const int T = std::min(info.num_frames, std::max(1, int(std::lround(kSwingCalibrationSeconds * info.fps))));
-  if (T < window) return b;
-  const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(calibration, 0, T), T, J);
-  const MatrixX3f truth = c.ground_truth(reader, calibration, 0, T);
-  const at::Tensor G =
-      float_tensor(truth.data(), {T, static_cast<int64_t>(c.mask.size()), 3}).index_select(1, b.apparel_ids);
+  std::vector<SwingCalibrationMotion> runs;
+  for (const std::string& name : calibration) {
+    const ClipInfo info = reader.clip_info(name);
+    const int T = std::min(info.num_frames, std::max(1, int(std::lround(kSwingCalibrationSeconds * info.fps))));
+    if (T < window) continue;
+    const at::Tensor motion = transforms_tensor(reader.read_joint_transforms(name, 0, T), T, J);
+    const MatrixX3f truth = c.ground_truth(reader, name, 0, T);
+    const at::Tensor G =
+        float_tensor(truth.data(), {T, static_cast<int64_t>(c.mask.size()), 3}).index_select(1, b.apparel_ids);
+    runs.push_back({motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames), motion, G});
+  }
+  if (runs.empty()) return b;
   BoundCharacter fitted = b;
-  fitted.apparel_swing_gain = fit_swing_on_motion(bundle, b, motion_lead_in(motion[0], c.joints, kDefaultLeadInFrames),
-                                                  motion, G, strain_limit, window)
-                                  .gain;
+  fitted.apparel_swing_gain = fit_swing_on_motions(bundle, b, runs, strain_limit, window).gain;
   return c.fitted.emplace(key, std::move(fitted)).first->second;
 }
 
@@ -954,7 +961,8 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
                     .first;
       const bool fit = options.calibrate_swing && options.fit_swing && m.stages != PipelineStages::kBodyOnly &&
                        m.source == ApparelSource::kNetwork && bundle.local_apparel() && bound->second.num_apparel() > 0;
-      const std::string calibration = fit ? calibration_clip(c, reader, clip.shard, clip.info.name, scored) : "";
+      const std::vector<std::string> calibration =
+          fit ? calibration_clips(c, reader, clip.shard, clip.info.name, scored) : std::vector<std::string>{};
       if (!calibration.empty()) fitted_characters.insert({clip.shard, c.name});
       const BoundCharacter& b = bound->second;
       // The bind each protocol scores: with the swing fitted under that protocol, or as bound.
@@ -1042,11 +1050,11 @@ EvaluationResult evaluate_model(const ModelBundle& bundle, const std::vector<std
   }
   if (!fitted_characters.empty())
     result.notes.push_back(
-        "apparel swing: fitted on another clip of each character (the first in file order that is not scored, else "
-        "the first other; its first " +
+        "apparel swing: fitted on other clips of each character (the first " + std::to_string(kSwingCalibrationClips) +
+        " in file order that are not scored, else the first others; their first " +
         std::to_string(static_cast<int>(kSwingCalibrationSeconds)) +
-        " s, under the protocol scored: from rest for rollouts, in windows from its ground truth for the paper "
-        "protocol), as `amt animate` fits it on its calibration motion, for " +
+        " s, pooled, under the protocol scored: from rest for rollouts, in windows from its ground truth for the "
+        "paper protocol), as `amt animate` fits it on its calibration motions, for " +
         std::to_string(fitted_characters.size()) +
         " character(s) (--swing-calibration on; probe: from the rig's "
         "response only).");

@@ -84,10 +84,10 @@ struct EvaluateOptions {
   /// Calibrate the learned apparel's swing on each character's own physics when its rig carries a response
   /// (BindOptions::calibrate_swing, swing_calibration in models/pipeline.h).
   bool calibrate_swing = true;
-  /// With calibrate_swing: fit the swing instead on another clip of the character (fit_swing_on_motion): its first
-  /// clip in file order that the evaluation does not score, else its first other clip, the first
-  /// kSwingCalibrationSeconds of it; what `amt animate` does with its calibration motion. A character with a single
-  /// clip keeps the probe's calibration.
+  /// With calibrate_swing: fit the swing instead on other clips of the character (fit_swing_on_motions): its first
+  /// kSwingCalibrationClips clips in file order that the evaluation does not score, else its first other clips, the
+  /// first kSwingCalibrationSeconds of each, pooled; what `amt animate` does with its calibration motions. A character
+  /// with a single clip keeps the probe's calibration.
   bool fit_swing = true;
   /// evaluate_predictions: also score a file without the mark of predictions (ground truth, e.g. a dataset
   /// rebuilt with other physics scored against the original); refused otherwise, as it would score perfect.

@@ -369,7 +369,7 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
   md << "- Apparel swing: "
      << (!result.options.calibrate_swing ? std::string("the apparel module as trained (`--swing-calibration off`)")
          : result.options.fit_swing
-             ? std::string("fitted per apparel piece on another clip of each character's own physics, else "
+             ? std::string("fitted per apparel piece on other clips of each character's own physics, else "
                            "calibrated on its rig's response (`--swing-calibration on`; notes below)")
              : std::string("calibrated on each character's own physics where its rig carries a response and the "
                            "apparel module knows its training data's least lively apparel (`--swing-calibration "

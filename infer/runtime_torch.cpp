@@ -708,6 +708,21 @@ AnimateSummary animate_with_spring_bones(const AnimateOptions& o) {
   return s;
 }
 
+// The calibration motions of a model folder: kCalibrationMotion and every other regular calibration_motion*.bvh, in
+// name order (kCalibrationMotion sorts first).
+std::vector<std::filesystem::path> calibration_motions(const std::string& model_dir) {
+  std::vector<std::filesystem::path> out;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(model_dir, error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(kCalibrationMotionStem, 0) == 0 && entry.path().extension() == ".bvh" &&
+        std::filesystem::is_regular_file(entry.path()))
+      out.push_back(entry.path());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 // The character's own apparel physics (a PMX model's rigid bodies, a VRM avatar's spring bones) on `player`'s frames
 // (at kApparelStepFps), started from the rest pose through `lead_in` frames as the simulated paths start a clip:
 // every vertex per frame. Empty when the character has no physics amt simulates.
@@ -745,47 +760,54 @@ std::vector<MatrixX3f> own_physics_frames(const AnimateOptions& o, const Runtime
   return {};
 }
 
-// The learned apparel's swing fitted on the character's own physics (fit_swing_calibration) over the calibration
-// motion of the model folder (kCalibrationMotion): the uncalibrated module and the character's simulation run through
-// its first kSwingCalibrationSeconds from the rest pose. Returns what the run reports, and sets
-// bound.apparel_swing_gain; an empty string (the gains left as they are) when the character has no physics amt
-// simulates or the folder has no calibration motion.
+// The learned apparel's swing fitted on the character's own physics (fit_swing_on_motions) over the calibration
+// motions of the model folder (calibration_motions): the uncalibrated module and the character's simulation run
+// through the first kSwingCalibrationSeconds of each from the rest pose, their frames pooled. Returns what the run
+// reports, and sets bound.apparel_swing_gain; an empty string (the gains left as they are) when the character has no
+// physics amt simulates or the folder has no calibration motion.
 std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle& bundle,
                                      const RuntimeCharacter& character, BoundCharacter& bound) {
-  const std::filesystem::path motion_path = std::filesystem::path(o.model_dir) / kCalibrationMotion;
-  if (bound.num_apparel() == 0 || !std::filesystem::is_regular_file(motion_path)) return "";
+  const std::vector<std::filesystem::path> paths = calibration_motions(o.model_dir);
+  if (bound.num_apparel() == 0 || paths.empty()) return "";
   if (!(character.springs && character.springs->num_joints() > 0) && !character.rig_bones_with_response) return "";
-  MotionSpec spec;
-  spec.spec = motion_path.string();
-  const SourceMotion source = load_motion(spec);
-  PlaybackOptions playback;
-  playback.fps = kApparelStepFps;
-  playback.frames = int(std::lround(kSwingCalibrationSeconds * kApparelStepFps));
-  playback.lead_in = std::max(1, o.playback.lead_in);
-  const MotionPlayer player(source, character, playback);
-  const std::vector<MatrixX3f> truth = own_physics_frames(o, character, source, player, playback.lead_in);
-  if (truth.empty()) return "";
-
   c10::InferenceMode inference;
-  const int64_t T = player.num_frames(), N_a = bound.num_apparel();
-  at::Tensor motion = at::empty({T, bound.joints.size(0), 3, 4}, at::kFloat), G = at::empty({T, N_a, 3}, at::kFloat);
-  for (int64_t t = 0; t < T; ++t) {
-    motion[t] = transforms_tensor(player.frame(int(t)));
-    const MatrixX3f& V = truth[size_t(t)];
-    AMT_CHECK(V.rows() == bound.num_vertices(), "swing calibration: the simulation gave ", V.rows(),
-              " vertices, expected ", bound.num_vertices());
-    G[t] = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::TensorOptions().dtype(at::kFloat))
-               .index_select(0, bound.apparel_ids);
+  std::vector<SwingCalibrationMotion> runs;
+  std::string names;
+  int64_t frames = 0;
+  for (const std::filesystem::path& path : paths) {
+    MotionSpec spec;
+    spec.spec = path.string();
+    const SourceMotion source = load_motion(spec);
+    PlaybackOptions playback;
+    playback.fps = kApparelStepFps;
+    playback.frames = int(std::lround(kSwingCalibrationSeconds * kApparelStepFps));
+    playback.lead_in = std::max(1, o.playback.lead_in);
+    const MotionPlayer player(source, character, playback);
+    const std::vector<MatrixX3f> truth = own_physics_frames(o, character, source, player, playback.lead_in);
+    if (truth.empty()) return "";
+    const int64_t T = player.num_frames(), N_a = bound.num_apparel();
+    at::Tensor motion = at::empty({T, bound.joints.size(0), 3, 4}, at::kFloat), G = at::empty({T, N_a, 3}, at::kFloat);
+    for (int64_t t = 0; t < T; ++t) {
+      motion[t] = transforms_tensor(player.frame(int(t)));
+      const MatrixX3f& V = truth[size_t(t)];
+      AMT_CHECK(V.rows() == bound.num_vertices(), "swing calibration: the simulation gave ", V.rows(),
+                " vertices, expected ", bound.num_vertices());
+      G[t] = at::from_blob(const_cast<float*>(V.data()), {V.rows(), 3}, at::TensorOptions().dtype(at::kFloat))
+                 .index_select(0, bound.apparel_ids);
+    }
+    runs.push_back({motion_lead_in(motion[0], bound.joints, playback.lead_in), motion, G});
+    names += (names.empty() ? "" : ", ") + path.filename().string();
+    frames += T;
   }
-  const at::Tensor lead = motion_lead_in(motion[0], bound.joints, playback.lead_in);
-  const SwingCalibration fit = fit_swing_on_motion(bundle, bound, lead, motion, G, o.strain_limit);
+  const SwingCalibration fit = fit_swing_on_motions(bundle, bound, runs, o.strain_limit);
   bound.apparel_swing_gain = fit.gain;
   const at::Tensor g = fit.gain;
-  char text[320];
+  char text[512];
   std::snprintf(text, sizeof(text),
-                "fitted on the rig's own physics over %.1f s of the calibration motion (%s; --swing-calibration "
-                "auto): %.0f %% of the apparel calmed, gain median %.2f, lowest %.2f",
-                double(T) / double(kApparelStepFps), kCalibrationMotion,
+                "fitted on the rig's own physics over %.1f s of %s (%s; --swing-calibration auto): %.0f %% of the "
+                "apparel calmed, gain median %.2f, lowest %.2f",
+                double(frames) / double(kApparelStepFps),
+                runs.size() == 1 ? "the calibration motion" : "the calibration motions", names.c_str(),
                 100.0 * g.lt(0.999f).to(at::kFloat).mean().item<double>(), g.median().item<double>(),
                 g.min().item<double>());
   return text;

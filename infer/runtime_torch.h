@@ -213,9 +213,11 @@ inline constexpr float kApparelStepFps = 30.0f;
 /// 1/240 s): a multiple of 24, 30, 60 and 120 fps, so frames at those rates fall on steps.
 inline constexpr float kPhysicsStepFps = 120.0f;
 
-/// The motion `amt animate` fits the learned apparel's swing on (fit_swing_calibration, models/pipeline.h) when the
-/// character carries physics amt simulates, a file of the model folder; its first kSwingCalibrationSeconds run.
+/// The motions `amt animate` fits the learned apparel's swing on (fit_swing_on_motions, models/pipeline.h) when the
+/// character carries physics amt simulates: files of the model folder, kCalibrationMotion and every other
+/// kCalibrationMotionStem*.bvh, pooled; the first kSwingCalibrationSeconds of each run.
 inline constexpr const char* kCalibrationMotion = "calibration_motion.bvh";
+inline constexpr const char* kCalibrationMotionStem = "calibration_motion";
 
 /// Runs the whole job. Throws amt::Error on bad input (before any output is created where it can be
 /// checked up front); the output is complete or absent.

@@ -804,21 +804,28 @@ SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor
   return out;
 }
 
-SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundCharacter& character,
-                                     const at::Tensor& lead_in, const at::Tensor& motion, const at::Tensor& truth,
-                                     float strain_limit, int64_t window) {
+namespace {
+
+// What fit_swing_on_motions pools from one motion: the module's apparel, its anchor skinning and the truth on the
+// frames the module predicts, each (F, N_a, 3).
+struct SwingFrames {
+  at::Tensor A_hat, S, G;
+};
+
+SwingFrames swing_frames(const ModelBundle& bundle, const BoundCharacter& plain, const SwingCalibrationMotion& run,
+                         float strain_limit, int64_t window) {
   constexpr int64_t kHistoryFrames = 3;
-  const int64_t T = motion.dim() == 4 ? motion.size(0) : -1, N_a = character.num_apparel();
-  AMT_CHECK(motion.dim() == 4 && lead_in.dim() == 4 && T > 0,
-            "swing calibration: motion and lead-in: expected (T, J, 3, 4) with T > 0, found ", motion.sizes(), " and ",
-            lead_in.sizes());
-  AMT_CHECK(truth.dim() == 3 && truth.size(0) == T && truth.size(1) == N_a && truth.size(2) == 3,
-            "swing calibration: the simulation's apparel: expected (", T, ", ", N_a, ", 3), found ", truth.sizes());
+  const at::Tensor &lead_in = run.lead_in, &motion = run.motion, &truth = run.truth;
+  const int64_t T = motion.defined() && motion.dim() == 4 ? motion.size(0) : -1, N_a = plain.num_apparel();
+  AMT_CHECK(motion.defined() && lead_in.defined() && motion.dim() == 4 && lead_in.dim() == 4 && T > 0,
+            "swing calibration: motion and lead-in: expected (T, J, 3, 4) with T > 0, found ",
+            (motion.defined() ? motion.sizes() : at::IntArrayRef{}), " and ",
+            (lead_in.defined() ? lead_in.sizes() : at::IntArrayRef{}));
+  AMT_CHECK(truth.defined() && truth.dim() == 3 && truth.size(0) == T && truth.size(1) == N_a && truth.size(2) == 3,
+            "swing calibration: the simulation's apparel: expected (", T, ", ", N_a, ", 3), found ",
+            (truth.defined() ? truth.sizes() : at::IntArrayRef{}));
   AMT_CHECK(window == 0 || (window > kHistoryFrames && window <= T), "swing calibration: window: expected 0 or ",
             kHistoryFrames + 1, "..", T, " frames (the motion's length), found ", window);
-  c10::InferenceMode inference;
-  BoundCharacter plain = character;
-  plain.apparel_swing_gain = at::Tensor();
   const at::Tensor G_all = truth.to(at::kFloat);
   PipelineStepper stepper(bundle, plain, rest_apparel_history(plain), PipelineStages::kBodyApparel);
   stepper.set_strain_limit(strain_limit);
@@ -837,18 +844,41 @@ SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundChara
   const int64_t F = static_cast<int64_t>(frames.size());
   const at::Tensor A_rest = plain.V.index_select(0, plain.apparel_ids);
   // Frame by frame: linear_blend_skinning's memory is O(T N 12) over a whole motion.
-  at::Tensor A_hat = at::empty({F, N_a, 3}, at::kFloat), S = at::empty({F, N_a, 3}, at::kFloat),
-             G = at::empty({F, N_a, 3}, at::kFloat);
+  SwingFrames out{at::empty({F, N_a, 3}, at::kFloat), at::empty({F, N_a, 3}, at::kFloat),
+                  at::empty({F, N_a, 3}, at::kFloat)};
   for (int64_t k = 0; k < F; ++k) {
     const int64_t t = frames[size_t(k)];
     if (window_start[size_t(k)])
       stepper.reset(G_all.narrow(0, t - kHistoryFrames, kHistoryFrames),
                     motion.narrow(0, t - kHistoryFrames, kHistoryFrames));
-    A_hat[k] = stepper.step_detailed(motion[t]).A_hat;
-    S[k] = linear_blend_skinning(A_rest, plain.apparel_anchor_weights, motion[t].unsqueeze(0), plain.joints)[0];
-    G[k] = G_all[t];
+    out.A_hat[k] = stepper.step_detailed(motion[t]).A_hat;
+    out.S[k] = linear_blend_skinning(A_rest, plain.apparel_anchor_weights, motion[t].unsqueeze(0), plain.joints)[0];
+    out.G[k] = G_all[t];
   }
-  return fit_swing_calibration(A_hat, S, G, plain.apparel_edges);
+  return out;
+}
+
+}  // namespace
+
+SwingCalibration fit_swing_on_motions(const ModelBundle& bundle, const BoundCharacter& character,
+                                      const std::vector<SwingCalibrationMotion>& motions, float strain_limit,
+                                      int64_t window) {
+  AMT_CHECK(!motions.empty(), "swing calibration: expected at least one motion, found none");
+  c10::InferenceMode inference;
+  BoundCharacter plain = character;
+  plain.apparel_swing_gain = at::Tensor();
+  std::vector<at::Tensor> A_hat, S, G;
+  for (const SwingCalibrationMotion& run : motions) {
+    SwingFrames f = swing_frames(bundle, plain, run, strain_limit, window);
+    A_hat.push_back(f.A_hat), S.push_back(f.S), G.push_back(f.G);
+  }
+  return fit_swing_calibration(at::cat(A_hat, 0), at::cat(S, 0), at::cat(G, 0), plain.apparel_edges);
+}
+
+SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundCharacter& character,
+                                     const at::Tensor& lead_in, const at::Tensor& motion, const at::Tensor& truth,
+                                     float strain_limit, int64_t window) {
+  return fit_swing_on_motions(bundle, character, {{lead_in, motion, truth}}, strain_limit, window);
 }
 
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

@@ -428,9 +428,13 @@ double swing_reference(const std::vector<SwingCalibration>& characters);
 SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor& S, const at::Tensor& G,
                                        const at::Tensor& apparel_edges);
 
-/// How much of a motion the fitted swing calibration runs (fit_swing_on_motion): `amt animate`'s calibration motion,
-/// `amt eval`'s other clip of the character.
+/// How much of each motion the fitted swing calibration runs (fit_swing_on_motions): `amt animate`'s calibration
+/// motions, `amt eval`'s other clips of the character.
 inline constexpr double kSwingCalibrationSeconds = 4.0;
+/// How many of a character's other clips `amt eval` fits the swing on (its first clips the evaluation does not score),
+/// as many as `amt animate` has calibration motions in the shipped model folder: pooled over two dances, a piece's gain
+/// hangs less on one motion's phase (models/pretrained/README.md).
+inline constexpr int kSwingCalibrationClips = 2;
 
 /// fit_swing_calibration on one motion: the module (the character's own gain set aside) with
 /// PipelineStages::kBodyApparel and the stretch limit `strain_limit` (PipelineStepper::set_strain_limit) through
@@ -438,12 +442,25 @@ inline constexpr double kSwingCalibrationSeconds = 4.0;
 /// apparel on the same frames. With window = 0 the module rolls out from the rest apparel over `lead_in`
 /// (L, J, 3, 4) and then the whole motion (`amt animate`, and `amt eval`'s rollout protocol); with window > 3 it
 /// predicts windows of `window` frames at a stride of window - 3, each started from the truth's 3 frames before it
-/// (the paper protocol; lead_in unused), and the fit sees the predicted frames. What `amt animate` does with its
-/// calibration motion and `amt eval` with another clip of the character. Throws amt::Error on shapes that do not
-/// match or a motion too short for one window.
+/// (the paper protocol; lead_in unused), and the fit sees the predicted frames. What `amt animate` does with each
+/// calibration motion and `amt eval` with each other clip of the character (fit_swing_on_motions). Throws amt::Error on
+/// shapes that do not match or a motion too short for one window.
 SwingCalibration fit_swing_on_motion(const ModelBundle& bundle, const BoundCharacter& character,
                                      const at::Tensor& lead_in, const at::Tensor& motion, const at::Tensor& truth,
                                      float strain_limit = kDefaultStrainLimit, int64_t window = 0);
+
+/// One motion of a fitted swing calibration (fit_swing_on_motions): lead_in (L, J, 3, 4), motion (T, J, 3, 4) and the
+/// simulation's apparel on the motion's frames, truth (T, N_a, 3).
+struct SwingCalibrationMotion {
+  at::Tensor lead_in, motion, truth;
+};
+
+/// fit_swing_on_motion over several motions at once: each runs as fit_swing_on_motion runs its one, and the fit pools
+/// their frames (every piece gets one scale over all of them), so that a piece's gain does not hang on one motion's
+/// phase. Throws amt::Error as fit_swing_on_motion does, naming the shape that does not match, or without motions.
+SwingCalibration fit_swing_on_motions(const ModelBundle& bundle, const BoundCharacter& character,
+                                      const std::vector<SwingCalibrationMotion>& motions,
+                                      float strain_limit = kDefaultStrainLimit, int64_t window = 0);
 
 /// Whole-sequence convenience over PipelineStepper: joint_transforms (T, J, 3, 4) -> V̂ (T, N, 3).
 at::Tensor run_pipeline(const ModelBundle& bundle, const BoundCharacter& character, const at::Tensor& history,

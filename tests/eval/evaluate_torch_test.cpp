@@ -373,7 +373,7 @@ TEST(Evaluate, ZeroNetworkRulesPerHorizonAndAmplitudeWithTheLocalModule) {
   }
 }
 
-// --swing-calibration on: each character's swing is fitted on another of its clips (the train character's unscored
+// --swing-calibration on: each character's swing is fitted on its other clips (the train character's unscored
 // train walk; the test character's two scored walks on each other). The ground truth is rigid skinning, so the
 // fitted gains calm a fresh module's swing towards its anchors; probe (no rig response here) runs it as trained.
 TEST(Evaluate, SwingFittedOnAnotherClipOfEachCharacter) {
@@ -393,7 +393,7 @@ TEST(Evaluate, SwingFittedOnAnotherClipOfEachCharacter) {
   const EvaluationResult probe = evaluate_model(bundle, {data}, options);
   const auto has_note = [](const EvaluationResult& r) {
     return std::any_of(r.notes.begin(), r.notes.end(), [](const std::string& note) {
-      return note.find("apparel swing: fitted on another clip of each character") != std::string::npos &&
+      return note.find("apparel swing: fitted on other clips of each character") != std::string::npos &&
              note.find("for 2 character(s)") != std::string::npos;
     });
   };

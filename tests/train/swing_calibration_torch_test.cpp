@@ -232,6 +232,18 @@ TEST(SwingCalibration, FittedOnAMotionRecoversTheScaleOfTheModulesOwnRollout) {
   EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, A.narrow(0, 0, T - 1)), Error);
   EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion, A.narrow(1, 0, N_a - 1)), Error);
   EXPECT_THROW(fit_swing_on_motion(b.bundle, b.character, lead, b.motion.narrow(0, 0, 0), A.narrow(0, 0, 0)), Error);
+
+  // Several motions pool their frames into one scale per piece: the module's own rollout beside the anchor skinning
+  // halves every piece it moves (sum <d, d> / (2 sum |d|^2)); a motion given twice is the motion once.
+  const SwingCalibration half = fit_swing_on_motions(b.bundle, b.character, {{lead, b.motion, A}, {lead, b.motion, S}});
+  EXPECT_LT((half.gain.masked_select(moved) - 0.5f).abs().max().item<float>(), 1e-3f);
+  const at::Tensor partial = S + 0.4f * (A - S);
+  EXPECT_TRUE(at::allclose(
+      fit_swing_on_motions(b.bundle, b.character, {{lead, b.motion, partial}, {lead, b.motion, partial}}).gain,
+      part.gain, 0.0, 1e-6));
+  EXPECT_THROW(fit_swing_on_motions(b.bundle, b.character, {}), Error);
+  EXPECT_THROW(fit_swing_on_motions(b.bundle, b.character, {{lead, b.motion, A}, {lead, b.motion, A.narrow(1, 0, 1)}}),
+               Error);
 }
 
 TEST(SwingCalibration, BindCalmsEachPieceOfARigStifferThanTheReference) {
