@@ -51,10 +51,12 @@ std::vector<std::pair<const char*, at::Tensor BoundCharacter::*>> fields() {
           {"handle_edges", &BoundCharacter::handle_edges}};
 }
 
-uint64_t hash_file(const std::string& path, uint64_t hash) {
-  check_input_file(path, "a checkpoint");
+}  // namespace
+
+uint64_t fnv1a64_file(const std::string& path, const std::string& what, uint64_t hash) {
+  check_input_file(path, what);
   std::ifstream in(path, std::ios::binary);
-  AMT_CHECK(in.good(), path, ": bind key: expected a readable checkpoint, found none");
+  AMT_CHECK(in.good(), path, ": expected ", what, " to read, found none readable");
   std::vector<char> chunk(size_t(1) << 20);
   while (in) {
     in.read(chunk.data(), std::streamsize(chunk.size()));
@@ -62,8 +64,6 @@ uint64_t hash_file(const std::string& path, uint64_t hash) {
   }
   return hash;
 }
-
-}  // namespace
 
 uint64_t fnv1a64(const void* data, size_t size, uint64_t hash) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -105,7 +105,7 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
   }
   if (!bundle.dir.empty()) {
     for (const char* file : {kSegmenterCheckpoint, kSkinningCheckpoint, kApparelCheckpoint, kRefinerCheckpoint}) {
-      h = hash_file((std::filesystem::path(bundle.dir) / file).string(), h);
+      h = fnv1a64_file((std::filesystem::path(bundle.dir) / file).string(), "a checkpoint", h);
     }
   } else {
     // A bundle assembled in code: hash its parameters.
@@ -131,18 +131,30 @@ at::Tensor hung_tensor(const HungPieces& hung) {
   return at::tensor({int64_t(hung.pinned), int64_t(hung.unnailed)}, at::kLong);
 }
 
+// The archive entries of a CachedSwingFit.
+constexpr const char* kSwingFitKey = "swing_fit_key";
+constexpr const char* kSwingFitText = "swing_fit_text";
+constexpr const char* kSwingFitGain = "swing_fit_gain";
+
 // CRC-32 of a bind cache's payload: the key, every stored field (name and tensor) in fields() order, then the
-// hung pieces' counts.
-uint32_t bind_crc32(const std::string& key, const BoundCharacter& bound) {
+// hung pieces' counts, then the swing fitted on it when there is one.
+uint32_t bind_crc32(const std::string& key, const BoundCharacter& bound, const CachedSwingFit& fit) {
   uint32_t crc = crc32_update(0, key);
   for (const auto& [name, member] : fields()) {
     const at::Tensor& t = bound.*member;
     if (t.defined()) crc = crc32_update(crc32_update(crc, std::string_view(name)), t);
   }
-  return crc32_update(crc32_update(crc, std::string_view(kHungKey)), hung_tensor(bound.hung));
+  crc = crc32_update(crc32_update(crc, std::string_view(kHungKey)), hung_tensor(bound.hung));
+  if (fit.empty()) return crc;
+  crc = crc32_update(crc32_update(crc, std::string_view(kSwingFitKey)), fit.key);
+  crc = crc32_update(crc32_update(crc, std::string_view(kSwingFitText)), fit.text);
+  return crc32_update(crc32_update(crc, std::string_view(kSwingFitGain)), fit.gain);
 }
 
-void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound) {
+void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound,
+               const CachedSwingFit& fit) {
+  AMT_CHECK(fit.empty() || (fit.gain.defined() && fit.gain.dim() == 1 && fit.gain.size(0) == bound.num_apparel()), path,
+            ": bind cache: the fitted swing gain: expected (", bound.num_apparel(), ") values");
   torch::serialize::OutputArchive archive;
   archive.write("format", c10::IValue(std::string(kBindFormat)));
   archive.write("version", c10::IValue(kBindVersion));
@@ -152,11 +164,17 @@ void save_bind(const std::string& path, const std::string& key, const BoundChara
     if (t.defined()) archive.write(name, t.clone());  // clone: inference tensors cannot be saved as views
   }
   archive.write(kHungKey, hung_tensor(bound.hung));
-  archive.write("crc32", c10::IValue(int64_t(bind_crc32(key, bound))));
+  if (!fit.empty()) {
+    archive.write(kSwingFitKey, c10::IValue(fit.key));
+    archive.write(kSwingFitText, c10::IValue(fit.text));
+    archive.write(kSwingFitGain, fit.gain.to(at::kFloat).contiguous().clone());
+  }
+  archive.write("crc32", c10::IValue(int64_t(bind_crc32(key, bound, fit))));
   save_archive_atomically(archive, path, "bind cache");
 }
 
-bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason) {
+bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason,
+               CachedSwingFit* fit) {
   auto miss = [reason](const std::string& why) {
     if (reason) *reason = why;
     return false;
@@ -199,9 +217,20 @@ bool load_bind(const std::string& path, const std::string& key, BoundCharacter& 
     return miss(std::string("damaged cache file (no ") + kHungKey + ")");
   }
   loaded.hung = HungPieces{int(hung[0].item<int64_t>()), int(hung[1].item<int64_t>())};
+  CachedSwingFit swing;
+  if (archive.try_read(kSwingFitKey, value)) {
+    if (!value.isString()) return miss(std::string("damaged cache file (") + kSwingFitKey + ")");
+    swing.key = value.toStringRef();
+    if (!archive.try_read(kSwingFitText, value) || !value.isString() || !archive.try_read(kSwingFitGain, swing.gain) ||
+        swing.gain.scalar_type() != at::kFloat || swing.gain.dim() != 1 ||
+        swing.gain.size(0) != loaded.apparel_ids.size(0))
+      return miss("damaged cache file (the fitted swing)");
+    swing.text = value.toStringRef();
+  }
   if (!archive.try_read("crc32", value) || !value.isInt()) return miss("no checksum (written by an older amt)");
-  if (value.toInt() != int64_t(bind_crc32(key, loaded))) return miss("damaged cache file (checksum mismatch)");
+  if (value.toInt() != int64_t(bind_crc32(key, loaded, swing))) return miss("damaged cache file (checksum mismatch)");
   bound = std::move(loaded);
+  if (fit) *fit = std::move(swing);
   if (reason) reason->clear();
   return true;
 }
@@ -215,7 +244,8 @@ BindResult bind_cached(const ModelBundle& bundle, const TriMesh& mesh, const Mat
   std::string key;
   if (!cache_path.empty()) {
     key = bind_key(mesh, joints, mask_override, bundle, bones.get(), weights, physics.get());
-    result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason);
+    result.key = key;
+    result.cache_hit = load_bind(cache_path, key, result.bound, &result.reason, &result.swing_fit);
     if (result.reason.rfind("damaged", 0) == 0) {
       std::cerr << "amt: " << cache_path << ": bind cache: " << result.reason << ", recomputing it\n";
     }

@@ -28,6 +28,21 @@ inline constexpr int64_t kBindVersion = 8;  // 4: apparel pieces hung (hang_appa
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;
 uint64_t fnv1a64(const void* data, size_t size, uint64_t hash = kFnvOffset);
 
+/// fnv1a64 over the bytes of the regular file `path` (`what` names it in the error), continuing from `hash`. Throws
+/// amt::Error when it cannot be read.
+uint64_t fnv1a64_file(const std::string& path, const std::string& what, uint64_t hash = kFnvOffset);
+
+/// A swing calibration fitted on the character's own physics (`amt animate`, fit_swing_on_motions), kept in the bind
+/// cache beside the bind it was fitted on: `key` over everything the fit read besides the bind (the character file,
+/// the calibration motions, the apparel module, the stretch limit and lead-in), the gain (N_a) float, and the line
+/// the run reported. Stored as the archive's optional entries swing_fit_key, swing_fit_text and swing_fit_gain,
+/// which its CRC-32 covers; empty (no key) when the file has none.
+struct CachedSwingFit {
+  std::string key, text;
+  at::Tensor gain;
+  bool empty() const { return key.empty(); }
+};
+
 /// The key of a bind: "fnv1a64:<16 hex>" over the mesh (V #V by 3, F #F by 3), rest joints (#J by 3),
 /// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
 /// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded), and the apparel bones given as handles (null:
@@ -38,14 +53,17 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
                      const ModelBundle& bundle, const ApparelBones* bones = nullptr,
                      const MatrixXfR& weights = MatrixXfR(), const ApparelBones* physics = nullptr);
 
-/// Writes a bound character and its key to `path` (through "<path>.amt-tmp"). Throws amt::Error when the
-/// file cannot be written.
-void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound);
+/// Writes a bound character and its key to `path` (through "<path>.amt-tmp"), with the swing fitted on it when `fit`
+/// is not empty. Throws amt::Error when the file cannot be written.
+void save_bind(const std::string& path, const std::string& key, const BoundCharacter& bound,
+               const CachedSwingFit& fit = {});
 
 /// Reads a bound character if `path` holds one with `key`. Returns false (and leaves `bound` alone)
 /// when the file is missing, of another format or version, damaged, or made for another key;
-/// `reason` then says which ("no file", "another mesh or model", ...).
-bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason = nullptr);
+/// `reason` then says which ("no file", "another mesh or model", ...). `fit`, when given, receives the swing fitted on
+/// it (empty when the file holds none).
+bool load_bind(const std::string& path, const std::string& key, BoundCharacter& bound, std::string* reason = nullptr,
+               CachedSwingFit* fit = nullptr);
 
 /// What bind_cached did.
 struct BindResult {
@@ -53,6 +71,10 @@ struct BindResult {
   /// True when the cache file was used; `reason` says why it was not otherwise.
   bool cache_hit = false;
   std::string reason;
+  /// The bind's key (bind_key; empty with the cache disabled) and, on a cache hit, the swing fitted on it that the
+  /// file holds (empty when none).
+  std::string key;
+  CachedSwingFit swing_fit;
   /// Wall time of the bind or of reading the cache, seconds.
   double seconds = 0.0;
 };

@@ -723,6 +723,34 @@ std::vector<std::filesystem::path> calibration_motions(const std::string& model_
   return out;
 }
 
+// The key of a swing fitted on the character's own physics (CachedSwingFit): over the bind's key `bind_key` and what
+// fit_swing_on_own_physics reads besides the bind: the character's files (its physics), each calibration motion's name
+// and bytes, the apparel module that steps it (apparel_own_weights.ckpt is not in the bind's key), the stretch limit,
+// the lead-in and the calibration's length and rate.
+std::string swing_fit_key(const AnimateOptions& o, const ModelBundle& bundle, const BoundCharacter& bound,
+                          const std::string& bind_key) {
+  uint64_t h = fnv1a64(bind_key.data(), bind_key.size());
+  for (const std::string* file : {&o.character.spec, &o.character.joints, &o.character.joint_map}) {
+    const uint8_t present = std::filesystem::is_regular_file(*file) ? 1 : 0;
+    h = fnv1a64(&present, 1, h);
+    if (present) h = fnv1a64_file(*file, "a character file", h);
+  }
+  for (const std::filesystem::path& path : calibration_motions(o.model_dir)) {
+    const std::string name = path.filename().string();
+    h = fnv1a64(name.data(), name.size() + 1, h);
+    h = fnv1a64_file(path.string(), "a calibration motion", h);
+  }
+  const std::filesystem::path own = std::filesystem::path(bundle.dir) / kApparelOwnWeightsCheckpoint;
+  if (bound.given_weights && !bundle.dir.empty() && std::filesystem::is_regular_file(own))
+    h = fnv1a64_file(own.string(), "a checkpoint", h);
+  const double settings[4] = {double(o.strain_limit), double(std::max(1, o.playback.lead_in)), kSwingCalibrationSeconds,
+                              double(kApparelStepFps)};
+  h = fnv1a64(settings, sizeof(settings), h);
+  char text[40];
+  std::snprintf(text, sizeof(text), "fnv1a64:%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
 // The character's own apparel physics (a PMX model's rigid bodies, a VRM avatar's spring bones) on `player`'s frames
 // (at kApparelStepFps), started from the rest pose through `lead_in` frames as the simulated paths start a clip:
 // every vertex per frame. Empty when the character has no physics amt simulates.
@@ -953,7 +981,17 @@ AnimateSummary animate(const AnimateOptions& o) {
     // the probe's calibration, and the run says why: the user asked for the learned apparel, not for its physics.
     std::string fitted;
     try {
-      fitted = fit_swing_on_own_physics(o, bundle, character, bind.bound);
+      // The fit kept in the bind cache when everything it reads is unchanged; else fitted now and kept there.
+      const std::string key = bind.key.empty() ? "" : swing_fit_key(o, bundle, bind.bound, bind.key);
+      if (!key.empty() && bind.swing_fit.key == key) {
+        bind.bound.apparel_swing_gain = bind.swing_fit.gain;
+        fitted = bind.swing_fit.text + " (from the bind cache)";
+      } else {
+        const BoundCharacter probe = bind.bound;
+        fitted = fit_swing_on_own_physics(o, bundle, character, bind.bound);
+        if (!fitted.empty() && !key.empty())
+          save_bind(s.bind_path, bind.key, probe, CachedSwingFit{key, fitted, bind.bound.apparel_swing_gain});
+      }
     } catch (const Error& e) {
       s.swing_source += " (not fitted on the rig's own physics: " + std::string(e.what()) + ")";
     }

@@ -187,18 +187,20 @@ TEST(RigHandles, AnimateTakesTheRigsBonesWhenAskedAndNamesThemOtherwise) {
 TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingData) {
   const RiggedPmx r = rigged_pmx("rig_handles_swing");
   const std::string motion = std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh";
-  const auto run = [&](const std::string& out, const std::vector<std::string>& extra) {
+  const auto run = [&](const std::string& out, const std::vector<std::string>& extra, const std::string& bind) {
     std::vector<std::string> args = {
         "animate", "--character", "humanoid.pmx", "--motion", motion,   "--model", "model", "--frames", "4",
-        "--out",   out,           "--threads",    "1",        "--bind", "none"};
+        "--out",   out,           "--threads",    "1",        "--bind", bind};
     args.insert(args.end(), extra.begin(), extra.end());
     return test::run_command("cd '" + r.dir.string() + "' && " + test::shell_command(AMT_BINARY, args));
   };
-  // Each run succeeds and prints `line` (its "apparel swing:" line or a part of it).
-  const auto expect_says = [&](const std::string& out, const std::vector<std::string>& extra, const std::string& line) {
-    const test::CommandResult result = run(out, extra);
-    ASSERT_EQ(result.status, 0) << result.err;
+  // Each run succeeds and prints `line` (its "apparel swing:" line or a part of it); its output.
+  const auto expect_says = [&](const std::string& out, const std::vector<std::string>& extra, const std::string& line,
+                               const std::string& bind = "none") {
+    const test::CommandResult result = run(out, extra, bind);
+    EXPECT_EQ(result.status, 0) << result.err;
     EXPECT_NE(result.out.find(line), std::string::npos) << result.out;
+    return result.out;
   };
   // The fresh model does not know its training data's reference: the module runs as trained.
   expect_says("unknown.glb", {},
@@ -219,6 +221,23 @@ TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingDa
   expect_says("fitted.glb", {},
               "apparel swing: fitted on the rig's own physics over 4.0 s of the calibration motion ("
               "calibration_motion.bvh; --swing-calibration auto)");
+  // Every calibration_motion*.bvh of the folder joins the fit, in name order.
+  fs::copy_file(std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_04.bvh", r.dir / "model" / "calibration_motion_2.bvh");
+  const std::string two =
+      "apparel swing: fitted on the rig's own physics over 8.0 s of the calibration motions (calibration_motion.bvh, "
+      "calibration_motion_2.bvh; --swing-calibration auto)";
+  // The bind cache keeps the fit: the second run reads it, and animates exactly as the first; a changed calibration
+  // motion is fitted again.
+  const std::string first = expect_says("cached.glb", {}, two, "swing.bind");
+  EXPECT_EQ(first.find("(from the bind cache)"), std::string::npos) << first;
+  const std::string again = expect_says("cached-again.glb", {}, two, "swing.bind");
+  EXPECT_NE(again.find("(from the bind cache)"), std::string::npos) << again;
+  EXPECT_EQ(test::read_file_bytes(r.dir / "cached.glb"), test::read_file_bytes(r.dir / "cached-again.glb"));
+  fs::copy_file(std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_05.bvh", r.dir / "model" / "calibration_motion_2.bvh",
+                fs::copy_options::overwrite_existing);
+  const std::string changed = expect_says("cached-changed.glb", {}, "apparel swing: fitted", "swing.bind");
+  EXPECT_EQ(changed.find("(from the bind cache)"), std::string::npos) << changed;
+  fs::remove(r.dir / "model" / "calibration_motion_2.bvh");
   // A damaged calibration motion leaves the probe's calibration, and the run names the file.
   std::ofstream(r.dir / "model" / kCalibrationMotion, std::ios::trunc) << "HIERARCHY\nROOT Hips\n{\n";
   expect_says("damaged.glb", {}, calmed);
@@ -226,7 +245,7 @@ TEST(RigHandles, AnimateCalmsTheLearnedSwingOfARigStifferThanTheModelsTrainingDa
               "(not fitted on the rig's own physics: model/" + std::string(kCalibrationMotion) +
                   ":3: joint 'Hips': expected OFFSET");
   expect_says("off.glb", {"--swing-calibration", "off"}, "apparel swing: as trained (--swing-calibration off)");
-  const test::CommandResult bad = run("bad.glb", {"--swing-calibration", "maybe"});
+  const test::CommandResult bad = run("bad.glb", {"--swing-calibration", "maybe"}, "none");
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.err.find("--swing-calibration"), std::string::npos) << bad.err;
 }

@@ -111,6 +111,39 @@ TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
   EXPECT_TRUE(bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache).cache_hit);
 }
 
+// A swing fitted on the bind rides in its file: read back as written, covered by the checksum (a flipped bit of the
+// gain is a damaged file), absent from a file written without one, and refused at write time with the wrong length.
+TEST(BindCache, KeepsTheSwingFittedOnTheBindUnderItsChecksum) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache_swing");
+  const BoundCharacter bound = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "").bound;
+  const int64_t N_a = bound.num_apparel();
+  ASSERT_GT(N_a, 0);
+  const at::Tensor gain = at::linspace(0.125, 0.875, N_a, at::kFloat);
+  save_bind(cache, "key", bound, CachedSwingFit{"fit-key", "fitted on the rig's own physics", gain});
+  BoundCharacter loaded;
+  CachedSwingFit fit;
+  std::string reason;
+  ASSERT_TRUE(load_bind(cache, "key", loaded, &reason, &fit)) << reason;
+  EXPECT_EQ(fit.key, "fit-key");
+  EXPECT_EQ(fit.text, "fitted on the rig's own physics");
+  EXPECT_TRUE(at::equal(fit.gain, gain));
+  EXPECT_TRUE(at::equal(loaded.apparel_ids, bound.apparel_ids));
+  // One flipped bit in the stored gain (found by its bytes): the checksum no longer matches.
+  std::string bytes = test::read_file_bytes(cache);
+  const size_t at = bytes.find(std::string(static_cast<const char*>(gain.data_ptr()), 16));
+  ASSERT_NE(at, std::string::npos);
+  bytes[at + 5] ^= 0x04;
+  std::ofstream(cache, std::ios::binary) << bytes;
+  EXPECT_FALSE(load_bind(cache, "key", loaded, &reason, &fit));
+  EXPECT_EQ(reason, "damaged cache file (checksum mismatch)");
+  // Written without a fit: none read back.
+  save_bind(cache, "key", bound);
+  fit = CachedSwingFit{"stale", "", gain};
+  ASSERT_TRUE(load_bind(cache, "key", loaded, &reason, &fit)) << reason;
+  EXPECT_TRUE(fit.empty());
+  EXPECT_THROW(save_bind(cache, "key", bound, CachedSwingFit{"fit-key", "", gain.narrow(0, 0, N_a - 1)}), Error);
+}
+
 TEST(BindCache, StoresWhatHangingChangedInTheMaskAndAnimatePrintsIt) {
   const auto [f, bundle, c, cache] = bind_inputs("bind_cache_hung");
   BoundCharacter bound = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, "").bound;
