@@ -189,9 +189,9 @@ ModelBundle bench_bundle(const std::string& given, std::string& what) {
 void bench_runtime(const BenchOptions& o) {
   std::string what;
   ModelBundle bundle = bench_bundle(o.model, what);
-  std::printf("runtime   %s; apparel mask from %s; walk motion; %d timed frames after a 10-frame lead-in%s\n",
+  std::printf("runtime   %s; apparel mask from %s; walk motion; %d timed frames after a %d-frame lead-in%s\n",
               what.c_str(), o.segmenter_mask ? "the segmenter" : "the dressed character (the GT-mask row)", o.repeats,
-              o.open_parts ? "; bodies of open, overlapping parts (--open-parts)" : "");
+              kDefaultLeadInFrames, o.open_parts ? "; bodies of open, overlapping parts (--open-parts)" : "");
   for (const int size : o.runtime_sizes) {
     RuntimeBenchmarkOptions options;
     options.vertices = size;

@@ -57,12 +57,13 @@ Motion motion_from_joint_transforms(const Skeleton& skeleton, const Transforms& 
 ///   fps        output frame rate (resampled); empty: 30 fps for BVH and glTF motions, a dataset clip's own rate
 ///   frames     at most this many output frames (0: all)
 ///   lead_in    frames that blend from the character's rest pose to the first frame before output
-///              starts (motion_lead_in of models/pipeline.h); they are run, not written, and count at 30 fps
-///              whatever the output rate, so the lead-in lasts lead_in / 30 seconds on every path
+///              starts (motion_lead_in of models/pipeline.h, eased in and out: lead_in_weight); they are run, not
+///              written, and count at 30 fps whatever the output rate, so the lead-in lasts lead_in / 30 seconds on
+///              every path
 struct PlaybackOptions {
   std::optional<float> fps;
   int frames = 0;
-  int lead_in = 10;
+  int lead_in = kDefaultLeadInFrames;
 };
 
 /// The joint transforms of a motion on a character, frame by frame. A dataset clip on its own

@@ -10,7 +10,7 @@ namespace amt {
 Transforms lead_in_pose(const Skeleton& skeleton, const Transforms& first, int k, int n) {
   AMT_CHECK(n >= 1 && k >= 0 && k < n, "lead-in: expected pose k in [0, n) with n >= 1, found k = ", k, ", n = ", n);
   Motion m = motion_from_joint_transforms(skeleton, first, 30.0f);
-  const float w = static_cast<float>(k + 1) / static_cast<float>(n + 1);
+  const float w = lead_in_weight(k, n);
   for (Eigen::Quaternionf& q : m.local_rotations) q = Eigen::Quaternionf::Identity().slerp(w, q).normalized();
   m.root_translation *= w;
   return forward_kinematics(skeleton, m, 0);

@@ -15,7 +15,7 @@
 namespace amt {
 
 /// Lead-in pose k (0-based) of n: the canonical pose blending from the rest pose of `skeleton` into `first` (22 joint
-/// transforms on it): every local rotation slerped from the identity by w = (k + 1) / (n + 1) and the root
+/// transforms on it): every local rotation slerped from the identity by w = lead_in_weight(k, n) and the root
 /// translation scaled by w, then forward kinematics. Pose n - 1 is close to `first`, never past it.
 Transforms lead_in_pose(const Skeleton& skeleton, const Transforms& first, int k, int n);
 

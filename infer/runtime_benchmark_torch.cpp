@@ -166,7 +166,7 @@ RuntimeFigures measure_runtime(const ModelBundle& bundle, const RuntimeBenchmark
     set_thread_count(threads);
     RuntimeSession session(bundle, bind.bound, mesh.F, /*resolve=*/true, {}, o.refine, o.strain_limit);
     const Transforms first = forward_kinematics(body.skeleton, walk, 0);
-    const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, 10);
+    const at::Tensor lead = motion_lead_in(transforms_tensor(first), session.bound().joints, kDefaultLeadInFrames);
     for (int64_t k = 0; k < lead.size(0); ++k) session.advance(lead[k]);
     std::unique_ptr<RuntimeSession> reference_session;
     if (reference) {

@@ -66,7 +66,7 @@ struct RuntimeBenchmarkOptions {
   bool segmenter_mask = false;
   /// Thread counts measured, in order (the bind runs on the last).
   std::vector<int> threads = {1, 2};
-  /// Timed frames per thread count (after a 10-frame lead-in).
+  /// Timed frames per thread count (after a lead-in of kDefaultLeadInFrames).
   int repeats = 30;
   /// Also time the apparel network of the global form, which the local form replaced (the widths it was
   /// shipped with, fresh weights: a step's time does not depend on their values), on the same character

@@ -20,6 +20,7 @@
 #include "data_tools/geometry/geodesic.h"
 #include "data_tools/geometry/lbs_torch.h"
 #include "data_tools/geometry/mesh.h"
+#include "data_tools/geometry/motion.h"
 #include "data_tools/geometry/segmentation_features.h"
 #include "data_tools/geometry/skeleton.h"
 #include "models/edge_conv.h"
@@ -503,7 +504,7 @@ at::Tensor motion_lead_in(const at::Tensor& first, const at::Tensor& rest_joints
     const Eigen::Vector3f rest(j0[3 * j], j0[3 * j + 1], j0[3 * j + 2]);
     const Eigen::Vector3f target = M.col(3);
     for (int64_t k = 0; k < frames; ++k) {
-      const float s = static_cast<float>(k + 1) / static_cast<float>(frames + 1);
+      const float s = lead_in_weight(k, frames);
       Eigen::Map<Eigen::Matrix<float, 3, 4, Eigen::RowMajor>> D(dst + 12 * (k * J + j));
       D.leftCols<3>() = Eigen::Quaternionf::Identity().slerp(s, q).toRotationMatrix();
       D.col(3) = (1.0f - s) * rest + s * target;

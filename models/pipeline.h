@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "data_tools/geometry/motion.h"
 #include "data_tools/geometry/strain_limit.h"
 #include "data_tools/geometry/types.h"
 #include "models/apparel_displacement.h"
@@ -248,9 +249,8 @@ BoundCharacter bind_character(const ModelBundle& bundle, const at::Tensor& V, co
 
 // === Starting a motion
 
-/// Frames of motion_lead_in that evaluation's rollout protocol and the runtime put before a clip's
-/// first frame, so that both start a clip identically.
-inline constexpr int64_t kDefaultLeadInFrames = 10;
+// kDefaultLeadInFrames (data_tools/geometry/motion.h): the frames of motion_lead_in that evaluation's rollout
+// protocol and the runtime put before a clip's first frame, so that both start a clip identically.
 
 /// The rest pose as joint transforms (frames, J, 3, 4): R = I, t = the rest joint (J, 3) positions.
 at::Tensor rest_pose_transforms(const at::Tensor& rest_joints, int64_t frames);
@@ -261,8 +261,8 @@ at::Tensor rest_apparel_history(const BoundCharacter& character);
 
 /// Joint transforms (frames, J, 3, 4) that move the skeleton from its rest pose (R = I, t = J_rest)
 /// to `first` (J, 3, 4), the first frame of a motion: per joint, rotations slerped and positions
-/// interpolated linearly at s = (k + 1) / (frames + 1), k = 0 .. frames - 1 (the frame `first` itself
-/// is not included). frames = 0 gives (0, J, 3, 4).
+/// interpolated linearly at s = lead_in_weight(k, frames) (eased in and out), k = 0 .. frames - 1 (the frame `first`
+/// itself is not included). frames = 0 gives (0, J, 3, 4).
 at::Tensor motion_lead_in(const at::Tensor& first, const at::Tensor& rest_joints, int64_t frames);
 
 // === Per-frame stepping

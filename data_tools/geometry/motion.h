@@ -1,6 +1,7 @@
 #pragma once
 // Motions (local joint rotations + root translation at a frame rate) and forward kinematics to the
 // paper's per-frame joint transforms T^(t) = [R_j | t_j].
+#include <cstdint>
 #include <string>
 
 #include "data_tools/geometry/skeleton.h"
@@ -57,5 +58,20 @@ Transforms forward_kinematics(const Skeleton& skeleton, const Motion& motion);
 
 /// Skinning matrices of one frame, M_j = [R_j | t_j - R_j J_j], so that M_j p = R_j (p - J_j) + t_j.
 Transforms skinning_matrices(const Skeleton& skeleton, const Transforms& joint_transforms);
+
+/// Frames that blend a character from its rest pose into a motion's first frame before the motion starts, at 30 fps
+/// (`amt animate --lead-in`, evaluation's rollout protocol): 0.75 s, the dataset builder's blend from the rest pose.
+/// Measured: ten frames (0.33 s) threw the apparel of PMX rigs about at the start, where the learned apparel missed
+/// their own physics most (CHANGELOG.md, "A lead-in as long as the training data's").
+inline constexpr int kDefaultLeadInFrames = 23;
+
+/// The weight of a motion's first frame in lead-in frame k (0-based) of n, the frames that blend a character from its
+/// rest pose into a motion before the motion starts (`amt animate --lead-in`): s = (k + 1) / (n + 1) eased in and out,
+/// s^2 (3 - 2 s), as the dataset builder blends its clips from the rest pose (blend_from_rest,
+/// data_tools/builder/motion_library.h): the pose leaves the rest pose and reaches the first frame without a jolt.
+inline float lead_in_weight(int64_t k, int64_t n) {
+  const float s = static_cast<float>(k + 1) / static_cast<float>(n + 1);
+  return s * s * (3.0f - 2.0f * s);
+}
 
 }  // namespace amt

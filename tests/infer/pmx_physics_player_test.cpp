@@ -41,7 +41,7 @@ TEST(PmxPhysicsPlayer, LeadInBlendsFromTheRestPoseTowardsTheFirstFrame) {
     const float head = Eigen::AngleAxisf(Eigen::Matrix3f(pose[kHead].leftCols<3>())).angle();
     EXPECT_GT(head, previous);  // monotonic from the rest pose
     previous = head;
-    const float w = (k + 1) / 5.0f;
+    const float s = (k + 1) / 5.0f, w = s * s * (3.0f - 2.0f * s);  // eased in and out
     EXPECT_NEAR(pose[kPelvis](2, 3), skeleton.rest_joints(kPelvis, 2) + w * 0.15f, 1e-5f);
   }
   EXPECT_LT(previous, Eigen::AngleAxisf(Eigen::Matrix3f(first[kHead].leftCols<3>())).angle());  // never past it

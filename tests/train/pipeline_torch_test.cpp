@@ -440,7 +440,7 @@ TEST(PipelineStepper, GivenWeightsStepWithTheOwnWeightsModule) {
 
 TEST(PipelineStart, RestHistoryAndLeadIn) {
   // One joint rotated 90 degrees about Y and moved from (0, 1, 0) to (2, 1, 0): the middle lead-in frame
-  // is rotated 45 degrees and halfway there.
+  // is rotated 45 degrees and halfway there; the first, at s = 1/4 eased to s^2 (3 - 2 s) = 5/32, 0.3125 along.
   at::Tensor first = at::zeros({1, 3, 4});
   first[0][0][2] = 1;
   first[0][1][1] = 1;
@@ -453,7 +453,8 @@ TEST(PipelineStart, RestHistoryAndLeadIn) {
   const float h = std::sqrt(0.5f);
   const at::Tensor expected = at::tensor({h, 0.0f, h, 1.0f, 0.0f, 1.0f, 0.0f, 1.0f, -h, 0.0f, h, 0.0f}).reshape({3, 4});
   EXPECT_TRUE(at::allclose(lead[1][0], expected, 1e-5, 1e-6)) << lead[1][0];
-  EXPECT_NEAR(lead[0][0][0][3].item<float>(), 0.5f, 1e-6);
+  EXPECT_NEAR(lead[0][0][0][3].item<float>(), 0.3125f, 1e-6);
+  EXPECT_NEAR(lead[2][0][0][3].item<float>(), 1.6875f, 1e-6);  // s = 3/4: 27/32
   EXPECT_EQ(motion_lead_in(first, rest, 0).size(0), 0);
 
   BoundCharacter b;
