@@ -107,6 +107,9 @@ std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::ve
     for (const char* file : {kSegmenterCheckpoint, kSkinningCheckpoint, kApparelCheckpoint, kRefinerCheckpoint}) {
       h = fnv1a64_file((std::filesystem::path(bundle.dir) / file).string(), "a checkpoint", h);
     }
+    // The module for given weights sets the swing calibration of a character bound with them (its swing_reference).
+    if (!bundle.apparel_dynamics_own_weights.is_empty())
+      h = fnv1a64_file((std::filesystem::path(bundle.dir) / kApparelOwnWeightsCheckpoint).string(), "a checkpoint", h);
   } else {
     // A bundle assembled in code: hash its parameters.
     for (const torch::nn::Module* m :

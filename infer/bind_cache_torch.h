@@ -34,9 +34,9 @@ uint64_t fnv1a64_file(const std::string& path, const std::string& what, uint64_t
 
 /// A swing calibration fitted on the character's own physics (`amt animate`, fit_swing_on_motions), kept in the bind
 /// cache beside the bind it was fitted on: `key` over everything the fit read besides the bind (the character file,
-/// the calibration motions, the apparel module, the stretch limit and lead-in), the gain (N_a) float, and the line
-/// the run reported. Stored as the archive's optional entries swing_fit_key, swing_fit_text and swing_fit_gain,
-/// which its CRC-32 covers; empty (no key) when the file has none.
+/// the calibration motions, the stretch limit and lead-in; the model's checkpoints are in the bind's key), the gain
+/// (N_a) float, and the line the run reported. Stored as the archive's optional entries swing_fit_key, swing_fit_text
+/// and swing_fit_gain, which its CRC-32 covers; empty (no key) when the file has none.
 struct CachedSwingFit {
   std::string key, text;
   at::Tensor gain;
@@ -45,10 +45,10 @@ struct CachedSwingFit {
 
 /// The key of a bind: "fnv1a64:<16 hex>" over the mesh (V #V by 3, F #F by 3), rest joints (#J by 3),
 /// the mask override (empty: none; else #V entries 0/1), the model's joint names and the contents of
-/// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded), and the apparel bones given as handles (null:
-/// none; their heads, parents and vertex weights), and the skin weights given in place of the predicted ones (empty:
-/// none), and the bones whose physics response the module reads (`physics`: their vertex weights and response).
-/// Throws amt::Error when a checkpoint file cannot be read.
+/// its checkpoint files (bundle.dir/*.ckpt that the bundle loaded, apparel_own_weights.ckpt included), and the apparel
+/// bones given as handles (null: none; their heads, parents and vertex weights), and the skin weights given in place
+/// of the predicted ones (empty: none), and the bones whose physics response the module reads (`physics`: their vertex
+/// weights and response). Throws amt::Error when a checkpoint file cannot be read.
 std::string bind_key(const TriMesh& mesh, const MatrixX3f& joints, const std::vector<uint8_t>& mask_override,
                      const ModelBundle& bundle, const ApparelBones* bones = nullptr,
                      const MatrixXfR& weights = MatrixXfR(), const ApparelBones* physics = nullptr);

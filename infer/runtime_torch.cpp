@@ -725,10 +725,9 @@ std::vector<std::filesystem::path> calibration_motions(const std::string& model_
 
 // The key of a swing fitted on the character's own physics (CachedSwingFit): over the bind's key `bind_key` and what
 // fit_swing_on_own_physics reads besides the bind: the character's files (its physics), each calibration motion's name
-// and bytes, the apparel module that steps it (apparel_own_weights.ckpt is not in the bind's key), the stretch limit,
-// the lead-in and the calibration's length and rate.
-std::string swing_fit_key(const AnimateOptions& o, const ModelBundle& bundle, const BoundCharacter& bound,
-                          const std::string& bind_key) {
+// and bytes (the model's checkpoints are in the bind's key), the stretch limit, the lead-in and the calibration's
+// length and rate.
+std::string swing_fit_key(const AnimateOptions& o, const std::string& bind_key) {
   uint64_t h = fnv1a64(bind_key.data(), bind_key.size());
   for (const std::string* file : {&o.character.spec, &o.character.joints, &o.character.joint_map}) {
     const uint8_t present = std::filesystem::is_regular_file(*file) ? 1 : 0;
@@ -740,9 +739,6 @@ std::string swing_fit_key(const AnimateOptions& o, const ModelBundle& bundle, co
     h = fnv1a64(name.data(), name.size() + 1, h);
     h = fnv1a64_file(path.string(), "a calibration motion", h);
   }
-  const std::filesystem::path own = std::filesystem::path(bundle.dir) / kApparelOwnWeightsCheckpoint;
-  if (bound.given_weights && !bundle.dir.empty() && std::filesystem::is_regular_file(own))
-    h = fnv1a64_file(own.string(), "a checkpoint", h);
   const double settings[4] = {double(o.strain_limit), double(std::max(1, o.playback.lead_in)), kSwingCalibrationSeconds,
                               double(kApparelStepFps)};
   h = fnv1a64(settings, sizeof(settings), h);
@@ -982,7 +978,7 @@ AnimateSummary animate(const AnimateOptions& o) {
     std::string fitted;
     try {
       // The fit kept in the bind cache when everything it reads is unchanged; else fitted now and kept there.
-      const std::string key = bind.key.empty() ? "" : swing_fit_key(o, bundle, bind.bound, bind.key);
+      const std::string key = bind.key.empty() ? "" : swing_fit_key(o, bind.key);
       if (!key.empty() && bind.swing_fit.key == key) {
         bind.bound.apparel_swing_gain = bind.swing_fit.gain;
         fitted = bind.swing_fit.text + " (from the bind cache)";

@@ -90,6 +90,25 @@ TEST(BindCache, HitOnTheSameInputsAndInvalidatedByAChangedMeshOrModel) {
   EXPECT_FALSE(bind_cached(retrained, moved, c.skeleton.rest_joints, other_mask, cache).cache_hit);
 }
 
+// The module for given weights (apparel_own_weights.ckpt) sets the swing calibration of a character bound with them:
+// it is part of the key, as the four required checkpoints are.
+TEST(BindCache, TheKeyCoversTheApparelModuleForGivenWeights) {
+  const auto [f, bundle, c, cache] = bind_inputs("bind_cache_own_weights");
+  const fs::path dir = f.dir / "local";
+  test::write_fresh_model(dir, 3, canonical_joint_names(), /*local_apparel=*/true);
+  const std::string plain = bind_key(c.mesh, c.skeleton.rest_joints, {}, load_model_bundle(dir.string()));
+  fs::copy_file(dir / kApparelCheckpoint, dir / kApparelOwnWeightsCheckpoint);
+  const std::string own = bind_key(c.mesh, c.skeleton.rest_joints, {}, load_model_bundle(dir.string()));
+  EXPECT_NE(own, plain);
+  test::write_fresh_model(f.dir / "other", 4, canonical_joint_names(), /*local_apparel=*/true);
+  fs::copy_file(f.dir / "other" / kApparelCheckpoint, dir / kApparelOwnWeightsCheckpoint,
+                fs::copy_options::overwrite_existing);
+  const std::string retrained = bind_key(c.mesh, c.skeleton.rest_joints, {}, load_model_bundle(dir.string()));
+  EXPECT_NE(retrained, own);
+  EXPECT_NE(retrained, plain);
+  EXPECT_EQ(bind_key(c.mesh, c.skeleton.rest_joints, {}, load_model_bundle(dir.string())), retrained);
+}
+
 TEST(BindCache, AFlippedByteIsRecomputedAndSaidSo) {
   const auto [f, bundle, c, cache] = bind_inputs("bind_cache_damaged");
   const BindResult first = bind_cached(bundle, c.mesh, c.skeleton.rest_joints, c.apparel_mask, cache);
