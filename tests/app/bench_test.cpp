@@ -60,6 +60,19 @@ TEST(BenchCommand, TinyRunsOfTheRuntimeClothAndSegmenterSuites) {
   EXPECT_NE(segmenter.out.find("segmenter "), std::string::npos) << segmenter.out;
   EXPECT_NE(segmenter.out.find("vertices; open parts"), std::string::npos) << segmenter.out;
   EXPECT_TRUE(test::snapshot(dir).empty());
+  // An artist's model (Godette's VRM springs, written as a dataset file) is scored as built, not remade of open parts.
+  const std::string godette = (data / "godette.h5").string();
+  test::expect_success(dir, {"animate", "--character", std::string(AMT_ASSET_DIR) + "/characters/Godette.vrm",
+                             "--motion", std::string(AMT_ASSET_DIR) + "/mocap/cmu/05_01.bvh", "--apparel",
+                             "spring-bones", "--frames", "2", "--out", godette});
+  const test::CommandResult artist =
+      test::expect_success(dir, {"bench", "--suite", "segmenter", "--data", godette, "--split", "test"});
+  EXPECT_NE(artist.out.find("segmenter Godette            8067 vertices; open parts      -:  as built IoU "),
+            std::string::npos)
+      << artist.out;
+  EXPECT_NE(artist.out.find("not laid out as the builder's characters: scored as built only;"), std::string::npos)
+      << artist.out;
+  EXPECT_EQ(artist.out.find("bare body"), std::string::npos) << artist.out;
 }
 
 }  // namespace
