@@ -117,6 +117,15 @@ RuntimeSession::RuntimeSession(const ModelBundle& bundle, BoundCharacter bound, 
   output_bound_ = 10.0f * std::max(extent.norm().item<float>(), 0.1f);
   const at::Tensor root = bound_.joints[0].contiguous();
   root_rest_ = Eigen::Vector3f(root[0].item<float>(), root[1].item<float>(), root[2].item<float>());
+  // The apparel on handles is pushed out of the body through them, as a piece (PenetrationResolver::set_rig).
+  if (bound_.handle_rows.defined() && bound_.handle_vertex_handles.defined()) {
+    const at::Tensor h = bound_.handle_vertex_handles.to(at::kInt).contiguous();
+    const at::Tensor w = bound_.handle_vertex_weights.to(at::kFloat).contiguous();
+    using Handles = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    resolver_.set_rig(Eigen::Map<const Handles>(h.data_ptr<int32_t>(), h.size(0), h.size(1)),
+                      Eigen::Map<const MatrixXfR>(w.data_ptr<float>(), w.size(0), w.size(1)),
+                      int(bound_.handle_rows.size(0)));
+  }
   // The resolver's body tree and its exposed faces on the rest pose, before the first frame.
   const at::Tensor rest = bound_.V.to(at::kFloat).contiguous();
   resolver_.prepare(Eigen::Map<const MatrixX3f>(rest.data_ptr<float>(), rest.size(0), 3));

@@ -1,8 +1,10 @@
 #include "models/apparel_handles.h"
 
 #include <ATen/ATen.h>
+#include <ATen/Parallel.h>
 #include <torch/utils.h>
 
+#include <Eigen/SVD>
 #include <vector>
 
 #include "data_tools/geometry/error.h"
@@ -97,6 +99,120 @@ at::Tensor follow_handles(const at::Tensor& A_h, const at::Tensor& S_h, const at
   const at::Tensor w = rig.vertex_weights.unsqueeze(-1);  // (N_a, K, 1)
   return S + (gathered.view(shape) * w).sum(-2);
 }
+
+namespace {
+// The pull towards no turn, relative to the neighbours' squared offsets: a chain whose handles stray from one line
+// by less than about this share of their spacing turns as a straight chain (no twist); a piece turned as a whole
+// turns by a few thousandths less than it did.
+constexpr double kTurnPull = 1e-3;
+
+at::Tensor handle_turn_share(const at::Tensor& A_h, const at::Tensor& S_h, const at::Tensor& S, const ApparelRig& rig);
+}  // namespace
+
+at::Tensor handle_turns(const at::Tensor& A_h, const at::Tensor& S_h, const ApparelRig& rig) {
+  AMT_CHECK(rig.defined(), "handle turns: the character has no handles");
+  const int64_t H = rig.num_handles();
+  AMT_CHECK(A_h.dim() >= 2 && A_h.size(-2) == H && A_h.size(-1) == 3 && S_h.sizes() == A_h.sizes(),
+            "handle turns: expected (..., ", H, ", 3) handles and anchors, found ", A_h.sizes(), " and ", S_h.sizes());
+  torch::NoGradGuard no_grad;
+  const at::Tensor A = A_h.detach().to(at::kFloat).reshape({-1, H, 3}).contiguous();
+  const at::Tensor S = S_h.detach().to(at::kFloat).reshape({-1, H, 3}).contiguous();
+  const at::Tensor E = rig.edges.to(at::kLong).contiguous();
+  const int64_t B = A.size(0), n_edges = E.size(0);
+  std::vector<int64_t> sizes(A_h.sizes().begin(), A_h.sizes().end());
+  sizes.push_back(3);
+  at::Tensor R = at::empty({B, H, 3, 3}, at::kFloat);
+  const float* a = A.data_ptr<float>();
+  const float* s = S.data_ptr<float>();
+  const int64_t* e = E.data_ptr<int64_t>();
+  float* r = R.data_ptr<float>();
+  // Written out: a few hundred 3x3 decompositions per frame, where a batched LAPACK call costs more in overhead.
+  at::parallel_for(0, B, 1, [&](int64_t b0, int64_t b1) {
+    std::vector<Eigen::Matrix3d> cov(static_cast<size_t>(H));
+    std::vector<double> scale(static_cast<size_t>(H));
+    std::vector<uint8_t> turned(static_cast<size_t>(H));
+    for (int64_t b = b0; b < b1; ++b) {
+      std::fill(cov.begin(), cov.end(), Eigen::Matrix3d::Zero());
+      std::fill(scale.begin(), scale.end(), 0.0);
+      std::fill(turned.begin(), turned.end(), 0);
+      const float* ab = a + b * H * 3;
+      const float* sb = s + b * H * 3;
+      for (int64_t k = 0; k < n_edges; ++k) {
+        const int64_t i = e[2 * k], j = e[2 * k + 1];
+        const Eigen::Vector3d da(ab[3 * j] - ab[3 * i], ab[3 * j + 1] - ab[3 * i + 1], ab[3 * j + 2] - ab[3 * i + 2]);
+        const Eigen::Vector3d ds(sb[3 * j] - sb[3 * i], sb[3 * j + 1] - sb[3 * i + 1], sb[3 * j + 2] - sb[3 * i + 2]);
+        const Eigen::Matrix3d outer = da * ds.transpose();  // the same seen from either end
+        cov[size_t(i)] += outer;
+        cov[size_t(j)] += outer;
+        scale[size_t(i)] += ds.squaredNorm();
+        scale[size_t(j)] += ds.squaredNorm();
+        if (da != ds) turned[size_t(i)] = turned[size_t(j)] = 1;
+      }
+      for (int64_t h = 0; h < H; ++h) {
+        Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
+        // Neighbours exactly where their anchors put them: no turn, exactly (the anchor skinning is kept bit for bit).
+        if (turned[size_t(h)] && scale[size_t(h)] > 0.0) {
+          const Eigen::Matrix3d m = cov[size_t(h)] + kTurnPull * scale[size_t(h)] * Eigen::Matrix3d::Identity();
+          const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+          Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+          d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+          turn = svd.matrixU() * d * svd.matrixV().transpose();
+        }
+        float* out = r + (b * H + h) * 9;
+        for (int x = 0; x < 3; ++x)
+          for (int y = 0; y < 3; ++y) out[3 * x + y] = static_cast<float>(turn(x, y));
+      }
+    }
+  });
+  return R.view(sizes);
+}
+
+at::Tensor follow_turning_handles(const at::Tensor& A_h, const at::Tensor& S_h, const at::Tensor& S,
+                                  const ApparelRig& rig) {
+  const at::Tensor moved = follow_handles(A_h, S_h, S, rig);
+  return moved + handle_turn_share(A_h, S_h, S, rig).view(moved.sizes()).to(moved.scalar_type());
+}
+
+namespace {
+
+// The turns' share of follow_turning_handles, held fixed: sum_k w_k (R_k - I) (S_v - S_h[k]), (B, N_a, 3).
+at::Tensor handle_turn_share(const at::Tensor& A_h, const at::Tensor& S_h, const at::Tensor& S, const ApparelRig& rig) {
+  const int64_t N_a = rig.vertex_handles.size(0), K = rig.vertex_handles.size(1), H = rig.num_handles();
+  torch::NoGradGuard no_grad;
+  const at::Tensor R = handle_turns(A_h, S_h, rig).reshape({-1, H, 3, 3}).contiguous();
+  const at::Tensor Sh = S_h.detach().to(at::kFloat).reshape({-1, H, 3}).contiguous();
+  const at::Tensor Sv = S.detach().to(at::kFloat).reshape({-1, N_a, 3}).contiguous();
+  const at::Tensor idx = rig.vertex_handles.to(at::kLong).contiguous();
+  const at::Tensor w = rig.vertex_weights.to(at::kFloat).contiguous();
+  const int64_t B = R.size(0);
+  at::Tensor turn = at::zeros({B, N_a, 3}, at::kFloat);
+  const float* r = R.data_ptr<float>();
+  const float* sh = Sh.data_ptr<float>();
+  const float* sv = Sv.data_ptr<float>();
+  const int64_t* ix = idx.data_ptr<int64_t>();
+  const float* wx = w.data_ptr<float>();
+  float* out = turn.data_ptr<float>();
+  at::parallel_for(0, B * N_a, 2048, [&](int64_t i0, int64_t i1) {
+    for (int64_t i = i0; i < i1; ++i) {
+      const int64_t b = i / N_a, v = i % N_a;
+      const float* p = sv + i * 3;
+      float acc[3] = {0.0f, 0.0f, 0.0f};
+      for (int64_t k = 0; k < K; ++k) {
+        const float wk = wx[v * K + k];
+        if (wk == 0.0f) continue;
+        const int64_t h = ix[v * K + k];
+        const float* q = sh + (b * H + h) * 3;
+        const float d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+        const float* m = r + (b * H + h) * 9;
+        for (int x = 0; x < 3; ++x) acc[x] += wk * (m[3 * x] * d[0] + m[3 * x + 1] * d[1] + m[3 * x + 2] * d[2] - d[x]);
+      }
+      for (int x = 0; x < 3; ++x) out[i * 3 + x] = acc[x];
+    }
+  });
+  return turn;
+}
+
+}  // namespace
 
 at::Tensor apparel_response(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& indices,
                             const MatrixXfR& weights, const MatrixXfR& bone_response, const at::Tensor& apparel_ids) {

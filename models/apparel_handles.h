@@ -52,4 +52,21 @@ ApparelGraph handle_graph(const ApparelGraph& g, const ApparelRig& rig);
 /// Differentiable in A_h.
 at::Tensor follow_handles(const at::Tensor& A_h, const at::Tensor& S_h, const at::Tensor& S, const ApparelRig& rig);
 
+/// Each handle's turn away from its anchor: the rotation R_k that best carries the offsets of its neighbours over the
+/// rig's edges at their anchors, S_h[j] - S_h[k], onto theirs in A_h, in least squares (Kabsch), pulled slightly
+/// towards no turn (a thousandth of the offsets' squared length: a piece turned as a whole turns a few thousandths
+/// less), so that a handle whose neighbours lie on one line turns the least way that lines them up, and one with no
+/// neighbours, or whose neighbours sit exactly where their anchors put them, does not turn (the identity exactly).
+///   A_h, S_h (..., H, 3) -> (..., H, 3, 3) float, not differentiable.
+at::Tensor handle_turns(const at::Tensor& A_h, const at::Tensor& S_h, const ApparelRig& rig);
+
+/// follow_handles with the handles turning (handle_turns), as an artist's bones turn the skin they carry:
+/// A_v = sum_k w_k (A_h[k] + R_k (S_v - S_h[k])). Offsets alone carry a piece that swings through a wide angle
+/// without turning it, which squashes and stretches it across its handles; with the turns a piece swinging as a whole
+/// keeps its edge lengths (to the turns' pull). Equal to follow_handles where no handle turns (A_h = S_h: the anchor
+/// skinning exactly).
+/// Differentiable in A_h with the turns held.
+at::Tensor follow_turning_handles(const at::Tensor& A_h, const at::Tensor& S_h, const at::Tensor& S,
+                                  const ApparelRig& rig);
+
 }  // namespace amt

@@ -663,14 +663,15 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
       const at::Tensor window_S = at::cat({history_anchors_, anchor.unsqueeze(0)}, 0).unsqueeze(0);  // (1, 4, N_a, 3)
       const at::Tensor h = history_.unsqueeze(0);
       if (source_ == ApparelSource::kNetwork && rig_.defined()) {
-        // The module moves the handles; every vertex follows its handles' offsets from their anchors.
+        // The module moves the handles; every vertex follows its handles, turning as they turn.
         const at::Tensor S_h = anchor.index_select(0, rig_.rows);
         const at::Tensor window_S_h = at::cat({handle_history_anchors_, S_h.unsqueeze(0)}, 0).unsqueeze(0);
         const at::Tensor A_h = bundle_.apparel_dynamics_for(character_.given_weights)
                                    .ptr()
                                    ->step(handle_history_.unsqueeze(0), window_T, window_S_h, handle_graph_)
                                    .squeeze(0);
-        out.A_hat = follow_handles(A_h, S_h, anchor, rig_);
+        out.A_hat =
+            turning_handles_ ? follow_turning_handles(A_h, S_h, anchor, rig_) : follow_handles(A_h, S_h, anchor, rig_);
         handle_history_ = at::cat({handle_history_.narrow(0, 1, 2), A_h.unsqueeze(0)}, 0);
         handle_history_anchors_ = window_S_h.squeeze(0).narrow(0, 1, 3);
       } else if (source_ == ApparelSource::kNetwork) {

@@ -353,6 +353,11 @@ class PipelineStepper {
   float strain_limit() const { return strain_.empty() ? 0.0f : strain_.max_stretch(); }
   PipelineStages stages() const { return stages_; }
 
+  /// Whether the apparel vertices follow the module's handles turning (follow_turning_handles, the default) or by
+  /// their offsets alone (follow_handles, as the module trains).
+  void set_turning_handles(bool on) { turning_handles_ = on; }
+  bool turning_handles() const { return turning_handles_; }
+
  private:
   const ModelBundle& bundle_;
   const BoundCharacter& character_;
@@ -372,6 +377,7 @@ class PipelineStepper {
   ApparelRig rig_;
   ApparelGraph handle_graph_;
   at::Tensor handle_history_, handle_history_anchors_;
+  bool turning_handles_ = true;
   // The learned apparel's stretch limit over the apparel (free) and body (fixed) vertices; empty: off.
   StrainLimiter strain_;
   // (N_a, 1) the swing gain of the character (BoundCharacter::apparel_swing_gain) for the local module; undefined:

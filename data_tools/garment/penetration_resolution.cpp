@@ -176,6 +176,93 @@ Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
   return p;
 }
 
+void PenetrationResolver::set_rig(
+    const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& vertex_handles,
+    const MatrixXfR& vertex_weights, int num_handles) {
+  AMT_CHECK(vertex_handles.rows() == Eigen::Index(apparel_.size()) && vertex_weights.rows() == vertex_handles.rows() &&
+                vertex_weights.cols() == vertex_handles.cols(),
+            "penetration: rig: expected ", apparel_.size(), " apparel rows of handles and weights, found ",
+            vertex_handles.rows(), " x ", vertex_handles.cols(), " and ", vertex_weights.rows(), " x ",
+            vertex_weights.cols());
+  AMT_CHECK(num_handles > 0 && (vertex_handles.size() == 0 ||
+                                (vertex_handles.minCoeff() >= 0 && vertex_handles.maxCoeff() < num_handles)),
+            "penetration: rig: expected handle indices in [0, ", num_handles, ")");
+  AMT_CHECK(vertex_weights.allFinite() && (vertex_weights.size() == 0 || vertex_weights.minCoeff() >= 0.0f),
+            "penetration: rig: expected finite weights >= 0");
+  rig_handles_ = vertex_handles;
+  rig_weights_ = vertex_weights;
+  rig_size_ = num_handles;
+  rig_neighbors_.assign(size_t(num_handles), {});
+  for (Eigen::Index k = 0; k < vertex_handles.rows(); ++k)
+    for (Eigen::Index a = 0; a < vertex_handles.cols(); ++a)
+      for (Eigen::Index b = 0; b < vertex_handles.cols(); ++b) {
+        const int32_t x = vertex_handles(k, a), y = vertex_handles(k, b);
+        if (x != y && vertex_weights(k, a) > 0.0f && vertex_weights(k, b) > 0.0f)
+          rig_neighbors_[size_t(x)].push_back(y);
+      }
+  for (auto& n : rig_neighbors_) {
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+  }
+}
+
+std::vector<int> PenetrationResolver::spread_through_rig(const std::vector<uint8_t>& pushing,
+                                                         std::vector<Eigen::Vector3f>& push) const {
+  const int Na = int(apparel_.size());
+  // Each handle the mean push of the pushing vertices it carries, by their weights on it.
+  std::vector<Eigen::Vector3f> handle_push(size_t(rig_size_), Eigen::Vector3f::Zero());
+  std::vector<float> handle_weight(size_t(rig_size_), 0.0f);
+  for (int k = 0; k < Na; ++k) {
+    if (!pushing[size_t(k)]) continue;
+    for (Eigen::Index c = 0; c < rig_handles_.cols(); ++c) {
+      const float w = rig_weights_(k, c);
+      if (!(w > 0.0f)) continue;
+      handle_push[size_t(rig_handles_(k, c))] += w * push[size_t(k)];
+      handle_weight[size_t(rig_handles_(k, c))] += w;
+    }
+  }
+  std::vector<int> ring(size_t(rig_size_), -1), frontier;
+  for (int h = 0; h < rig_size_; ++h) {
+    if (!(handle_weight[size_t(h)] > 0.0f)) continue;
+    handle_push[size_t(h)] /= handle_weight[size_t(h)];
+    ring[size_t(h)] = 0;
+    frontier.push_back(h);
+  }
+  // Spread over the handles' graph (handles that share a vertex) as rings of vertices spread it without a rig.
+  for (int r = 1; r <= options_.smoothing_rings && !frontier.empty(); ++r) {
+    std::vector<int> next;
+    for (int h : frontier)
+      for (int n : rig_neighbors_[size_t(h)])
+        if (ring[size_t(n)] == -1) ring[size_t(n)] = r, next.push_back(n);
+    std::sort(next.begin(), next.end());
+    for (int h : next) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      int count = 0;
+      for (int n : rig_neighbors_[size_t(h)])
+        if (ring[size_t(n)] >= 0 && ring[size_t(n)] < r) sum += handle_push[size_t(n)], ++count;
+      if (count > 0) handle_push[size_t(h)] = options_.falloff * sum / float(count);
+    }
+    frontier = std::move(next);
+  }
+  // Each vertex its handles' pushes (apparel left inside at rest stays).
+  std::vector<int> carried;
+  for (int k = 0; k < Na; ++k) {
+    if (!rest_inside_.empty() && rest_inside_[size_t(k)]) continue;
+    Eigen::Vector3f u = Eigen::Vector3f::Zero();
+    bool moves = false;
+    for (Eigen::Index c = 0; c < rig_handles_.cols(); ++c) {
+      const float w = rig_weights_(k, c);
+      if (!(w > 0.0f) || ring[size_t(rig_handles_(k, c))] < 0) continue;
+      u += w * handle_push[size_t(rig_handles_(k, c))];
+      moves = true;
+    }
+    if (!moves) continue;
+    push[size_t(k)] = u;
+    carried.push_back(k);
+  }
+  return carried;
+}
+
 PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   PenetrationReport report;
   const int Na = int(apparel_.size());
@@ -215,6 +302,42 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   }
   if (report.pushed == 0) {
     report.after = report.before;
+    return report;
+  }
+  if (rig_size_ > 0) {
+    // Through the handles (set_rig), in rounds: the vertices still inside after a round push again, through their
+    // handles, up to kMaxPushes rounds; what is inside after the last stays.
+    std::vector<uint8_t> pushing(size_t(Na), 0), moved(size_t(Na), 0);
+    for (int k = 0; k < Na; ++k) pushing[size_t(k)] = inside[size_t(k)] && !tucked(k);
+    std::vector<float> still(size_t(Na), -1.0f);
+    tree_->update_far_field();  // when every verdict carried over, classify() did not need it
+    for (int round = 1;; ++round) {
+      const std::vector<int> carried = spread_through_rig(pushing, push);
+      for (int k : carried) V.row(apparel_[size_t(k)]) += push[size_t(k)].transpose(), moved[size_t(k)] = 1;
+        // A vertex outside before the move is still outside when the body is farther from it than it moved (see
+        // below); the others are tested.
+#pragma omp parallel for schedule(dynamic, 64)
+      for (int t = 0; t < int(carried.size()); ++t) {
+        const int k = carried[size_t(t)];
+        const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+        still[size_t(k)] = -1.0f;
+        if (!pushing[size_t(k)] && tree.distance(p) > push[size_t(k)].norm()) continue;
+        if (!tree.inside(p)) continue;
+        Eigen::Vector3f closest;
+        const float d = tree.distance(p, &closest, &exposed_);
+        still[size_t(k)] = d;
+        push[size_t(k)] =
+            d > 1e-9f ? Eigen::Vector3f((closest - p) * ((d + options_.margin) / d)) : Eigen::Vector3f::Zero();
+      }
+      bool any = false;
+      std::fill(pushing.begin(), pushing.end(), 0);
+      for (int k : carried) any |= (pushing[size_t(k)] = still[size_t(k)] >= 0.0f) != 0;
+      if (!any || round == kMaxPushes) break;
+    }
+    for (int k = 0; k < Na; ++k) {
+      if (pushing[size_t(k)]) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(still[size_t(k)]);
+      if (moved[size_t(k)] && !inside[size_t(k)]) ++report.smoothed;
+    }
     return report;
   }
   // Tucked vertices take no spread either (ring -2: never a ring of the spread, never moved).

@@ -96,6 +96,17 @@ class PenetrationResolver {
   /// body on V (rest_inside()). Nothing when the tree is already built.
   void prepare(const MatrixX3f& V);
 
+  /// Spreads the pushes through the apparel's handles instead of rings of neighbours: every handle takes the mean
+  /// push of the penetrating vertices it carries (weighted by their weights on it) and every apparel vertex moves by
+  /// the weighted pushes of its handles, as the apparel follows its handles (models/apparel_handles.h); a vertex
+  /// still inside after that is pushed on its own. A piece pushed out by one vertex at a time is squashed and
+  /// stretched across the body's surface (a hair strand swung two centimetres into the back has its one-centimetre
+  /// edges torn); pushed by its handles it moves out as a piece.
+  ///   vertex_handles, vertex_weights (num_apparel(), K): each apparel vertex's handles in [0, num_handles) and
+  ///   weights (by apparel position, ascending mesh order). Throws amt::Error on shapes or indices that do not match.
+  void set_rig(const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& vertex_handles,
+               const MatrixXfR& vertex_weights, int num_handles);
+
   /// Measures the apparel's penetration into the body of V (#V by 3, metres) without changing it.
   /// `carried`, when given, receives the number of verdicts carried over from the previous call.
   Penetration measure(const MatrixX3f& V, int* carried = nullptr);
@@ -123,6 +134,10 @@ class PenetrationResolver {
   // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
   const WindingNumberTree& posed_body(const MatrixX3f& V);
 
+  // The pushes of the vertices marked in `pushing` (by apparel position) spread through the rig (set_rig): `push`
+  // receives every carried vertex's move; returns the carried vertices, ascending.
+  std::vector<int> spread_through_rig(const std::vector<uint8_t>& pushing, std::vector<Eigen::Vector3f>& push) const;
+
   // Inside verdicts of V's apparel vertices into inside_ (by apparel position), with the tree posed
   // as in V (posed_body); returns how many carried over from the previous call. The tree's far field
   // is brought up to date only when some vertex needs a winding-number query.
@@ -143,6 +158,11 @@ class PenetrationResolver {
   std::vector<uint8_t> inside_;          // their verdicts
   std::vector<uint8_t> rest_inside_;     // apparel inside at rest, left alone (keep_rest_penetration); empty: none
   std::vector<int> query_;               // apparel positions whose verdict classify() queried
+  // The apparel's handles (set_rig): per apparel position its handles and weights; no rows: rings spread the pushes.
+  Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rig_handles_;
+  MatrixXfR rig_weights_;
+  int rig_size_ = 0;
+  std::vector<std::vector<int>> rig_neighbors_;  // handles that share a vertex, ascending
 };
 
 }  // namespace amt

@@ -5,12 +5,14 @@
 #include <gtest/gtest.h>
 #include <torch/utils.h>
 
+#include <cmath>
 #include <cstring>
 #include <string>
 #include <tuple>
 #include <vector>
 
 #include "data_tools/formats/dataset_file.h"
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/lbs_torch.h"
 #include "fresh_model.h"
 #include "micro_dataset.h"
@@ -90,7 +92,7 @@ TEST(ApparelHandlesPipeline, StepperIsTheModuleOnTheHandlesFollowedByTheVertices
   const ApparelGraph g = handle_graph(b.apparel_graph(), rig);
   const at::Tensor S_h = S.index_select(1, rig.rows);
   const at::Tensor A_h = f.bundle.apparel_dynamics.ptr()->rollout(history.index_select(1, rig.rows), m.motion, S_h, g);
-  const at::Tensor A_ref = follow_handles(A_h, S_h.narrow(0, 3, T - 3), S.narrow(0, 3, T - 3), rig);
+  const at::Tensor A_ref = follow_turning_handles(A_h, S_h.narrow(0, 3, T - 3), S.narrow(0, 3, T - 3), rig);
   EXPECT_TRUE(at::allclose(at::stack(A_hat), A_ref, 1e-5, 1e-6));
   EXPECT_GT((A_ref - S.narrow(0, 3, T - 3)).abs().max().item<float>(), 1e-4f);  // the network acts
 
@@ -105,11 +107,39 @@ TEST(ApparelHandlesPipeline, StepperIsTheModuleOnTheHandlesFollowedByTheVertices
     const at::Tensor got = zero.step_detailed(m.motion[t]).A_hat;
     const at::Tensor rule_h = detail_rule_step(h, m.motion.narrow(0, t - 3, 4).unsqueeze(0),
                                                S_h.narrow(0, t - 3, 4).unsqueeze(0), g.frame_joints, inertia);
-    const at::Tensor expected = follow_handles(rule_h.squeeze(0), S_h[t], S[t], rig);
+    const at::Tensor expected = follow_turning_handles(rule_h.squeeze(0), S_h[t], S[t], rig);
     // To float rounding: the stepper skins the history's anchors and the new frame's in separate calls.
     EXPECT_LT((got - expected).abs().max().item<float>(), 1e-6f) << t;
     h = at::cat({h.narrow(1, 1, 2), rule_h.unsqueeze(1)}, 1);
   }
+}
+
+// The stepper's vertices follow the handles turning by default; set_turning_handles(false) gives follow_handles.
+TEST(ApparelHandlesPipeline, TheStepperFollowsTurningHandlesUnlessToldNot) {
+  Fixture f = fixture("handles_turning", 8);
+  const Micro& m = f.micro;
+  const BoundCharacter b = bind_character(f.bundle, m.V, m.F, m.joints, [&] {
+    BindOptions o;
+    o.apparel_mask = m.mask;
+    return o;
+  }());
+  const at::Tensor history = m.V_gt.index_select(1, b.apparel_ids).narrow(0, 0, 3);
+  // A history off the rest place by a few centimetres, varying over the piece, so that the handles turn.
+  const at::Tensor A_rest = m.V.index_select(0, b.apparel_ids);
+  const at::Tensor bent =
+      history + 0.03 * at::stack({at::sin(31 * A_rest.select(1, 1)), at::zeros_like(A_rest.select(1, 0)),
+                                  at::cos(17 * A_rest.select(1, 1))},
+                                 1);
+  std::vector<at::Tensor> got[2];
+  for (const bool turning : {true, false}) {
+    PipelineStepper stepper(f.bundle, b, bent, PipelineStages::kBodyApparel);
+    EXPECT_TRUE(stepper.turning_handles());
+    stepper.set_turning_handles(turning);
+    stepper.set_strain_limit(0.0f);
+    stepper.reset(bent, m.motion.narrow(0, 0, 3));
+    for (int t = 3; t < 8; ++t) got[turning].push_back(stepper.step_detailed(m.motion[t]).A_hat.clone());
+  }
+  EXPECT_GT((at::stack(got[1]) - at::stack(got[0])).abs().max().item<float>(), 1e-4f);
 }
 
 // The micro character with its apparel cut along a seam, as an artist's UV split leaves it: the apparel faces
@@ -202,6 +232,87 @@ TEST(ApparelHandlesPipeline, AGivenMaskThatSplitsAWeldIsKeptAndCounted) {
   const BoundCharacter original = bind_masked(f.bundle, m.V, m.F, m.joints, m.mask);
   EXPECT_EQ(b.topology().refused_welds, original.topology().refused_welds + 1);
   EXPECT_FALSE(b.apparel_mask[N].item<bool>());
+}
+
+// A hand-made rig of four handles (a tetrahedron, every pair linked) and six vertices between them.
+ApparelRig tetrahedron_rig() {
+  ApparelRig rig;
+  rig.rows = at::arange(4, at::kLong);
+  rig.vertex_handles = at::tensor({0, 1, 1, 2, 2, 3, 3, 0, 0, 2, 1, 3}, at::kLong).view({6, 2});
+  rig.vertex_weights =
+      at::tensor({0.5f, 0.5f, 0.7f, 0.3f, 0.2f, 0.8f, 0.6f, 0.4f, 0.9f, 0.1f, 0.5f, 0.5f}).view({6, 2});
+  rig.edges = at::tensor({0, 1, 0, 2, 0, 3, 1, 2, 1, 3, 2, 3}, at::kLong).view({6, 2});
+  return rig;
+}
+
+at::Tensor rotation(double angle, std::vector<double> axis) {
+  const double n = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+  const double x = axis[0] / n, y = axis[1] / n, z = axis[2] / n, c = std::cos(angle), s = std::sin(angle);
+  return at::tensor({c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s,  //
+                     y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s,  //
+                     z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)},
+                    at::kDouble)
+      .view({3, 3})
+      .to(at::kFloat);
+}
+
+// A piece moved rigidly (turned 50 degrees and shifted): every handle's turn is the rotation (to the pull towards no
+// turn: a few thousandths), and the vertices following the turning handles are the piece moved rigidly to a fraction
+// of a millimetre; following the offsets alone misses by centimetres. Not moved: the anchors exactly.
+TEST(ApparelHandles, TurningHandlesCarryARigidlyMovedPieceExactly) {
+  const ApparelRig rig = tetrahedron_rig();
+  const at::Tensor S_h =
+      at::tensor({0.0f, 0.0f, 0.0f, 0.1f, 0.0f, 0.0f, 0.0f, 0.12f, 0.0f, 0.0f, 0.0f, 0.09f}).view({4, 3});
+  // Each vertex at its handles' weighted mean plus a few centimetres off it.
+  const at::Tensor S = at::tensor({0.05f, 0.01f, 0.0f, 0.07f, 0.04f, 0.02f, 0.0f, 0.1f, 0.07f,  //
+                                   0.01f, 0.0f, 0.03f, 0.02f, 0.02f, -0.01f, 0.06f, 0.01f, 0.05f})
+                           .view({6, 3});
+  const at::Tensor R = rotation(50.0 * M_PI / 180.0, {0.3, -1.0, 0.4});
+  const at::Tensor shift = at::tensor({0.02f, -0.05f, 0.01f});
+  const at::Tensor A_h = at::matmul(S_h, R.t()) + shift;
+  const at::Tensor turns = handle_turns(A_h, S_h, rig);
+  ASSERT_EQ(turns.sizes(), (std::vector<int64_t>{4, 3, 3}));
+  for (int h = 0; h < 4; ++h) EXPECT_LT((turns[h] - R).abs().max().item<float>(), 6e-3f) << "handle " << h;
+  const at::Tensor rigid = at::matmul(S, R.t()) + shift;
+  EXPECT_LT((follow_turning_handles(A_h, S_h, S, rig) - rigid).abs().max().item<float>(), 3e-4f);
+  EXPECT_GT((follow_handles(A_h, S_h, S, rig) - rigid).abs().max().item<float>(), 0.01f);
+  EXPECT_TRUE(at::equal(follow_turning_handles(S_h, S_h, S, rig), S));
+  // Batched over frames as over one, and differentiable in A_h with the turns held (the offsets' gradient).
+  const at::Tensor frames = at::stack({A_h, S_h, A_h + 0.01});
+  const at::Tensor anchors = at::stack({S_h, S_h, S_h});
+  const at::Tensor batched = follow_turning_handles(frames, anchors, at::stack({S, S, S}), rig);
+  EXPECT_TRUE(at::allclose(batched[0], follow_turning_handles(A_h, S_h, S, rig), 1e-6, 1e-7));
+  EXPECT_TRUE(at::allclose(batched[2], follow_turning_handles(A_h + 0.01, S_h, S, rig), 1e-6, 1e-7));
+  const at::Tensor x = A_h.clone().requires_grad_(true), y = A_h.clone().requires_grad_(true);
+  const at::Tensor probe = at::linspace(-1.0, 1.0, 18).view({6, 3});
+  (follow_turning_handles(x, S_h, S, rig) * probe).sum().backward();
+  (follow_handles(y, S_h, S, rig) * probe).sum().backward();
+  EXPECT_TRUE(at::allclose(x.grad(), y.grad(), 1e-6, 1e-7));
+  EXPECT_THROW(handle_turns(A_h.narrow(0, 0, 3), S_h.narrow(0, 0, 3), rig), Error);
+}
+
+// Handles along one line (a chain) fix no turn about it: each turns the least way that lines the chain up (about
+// the axis across the old and new directions), not twisting it.
+TEST(ApparelHandles, AChainTurnsTheLeastWayThatLinesItUp) {
+  ApparelRig rig;
+  rig.rows = at::arange(3, at::kLong);
+  rig.vertex_handles = at::tensor({0, 1, 1, 2}, at::kLong).view({2, 2});
+  rig.vertex_weights = at::full({2, 2}, 0.5f);
+  rig.edges = at::tensor({0, 1, 1, 2}, at::kLong).view({2, 2});
+  const at::Tensor S_h = at::tensor({0.0f, 0.0f, 0.0f, 0.1f, 0.0f, 0.0f, 0.2f, 0.0f, 0.0f}).view({3, 3});
+  const at::Tensor A_h = at::tensor({0.0f, 0.0f, 0.0f, 0.0f, 0.1f, 0.0f, 0.0f, 0.2f, 0.0f}).view({3, 3});  // x -> y
+  const at::Tensor turns = handle_turns(A_h, S_h, rig);
+  for (int h = 0; h < 3; ++h) {
+    const at::Tensor x = at::matmul(turns[h], at::tensor({1.0f, 0.0f, 0.0f}));
+    const at::Tensor z = at::matmul(turns[h], at::tensor({0.0f, 0.0f, 1.0f}));
+    // The slight pull towards no turn leaves it a thousandth of a radian short of the quarter turn.
+    EXPECT_LT((x - at::tensor({0.0f, 1.0f, 0.0f})).abs().max().item<float>(), 5e-3f) << h;
+    EXPECT_LT((z - at::tensor({0.0f, 0.0f, 1.0f})).abs().max().item<float>(), 1e-5f) << h;
+  }
+  // A handle with no neighbours does not turn.
+  ApparelRig alone = rig;
+  alone.edges = at::zeros({0, 2}, at::kLong);
+  EXPECT_TRUE(at::allclose(handle_turns(A_h, S_h, alone), at::eye(3).expand({3, 3, 3}), 0, 0));
 }
 
 }  // namespace

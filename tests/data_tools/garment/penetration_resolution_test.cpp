@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
+#include "data_tools/geometry/error.h"
 #include "data_tools/geometry/mesh.h"
 #include "data_tools/geometry/shapes.h"
 #include "data_tools/geometry/winding_number.h"
@@ -239,6 +241,71 @@ TEST(PenetrationResolver, FillsTheHolesOfAnOpenBody) {
   EXPECT_EQ(carried, 441);  // nothing moved
   PenetrationResolver unfilled_sphere(c.mesh.F, c.mask);
   EXPECT_EQ(unfilled_sphere.num_filled_holes(), 0);
+}
+
+// Through a rig (set_rig) the pushes move pieces: with one handle carrying the whole sheet every sheet vertex moves by
+// the same vector (the mean push of the inside vertices, round after round), so no sheet edge changes length, where
+// the per-vertex pushes bend the sheet over the sphere. Two handles (left and right halves) move each half as one.
+TEST(PenetrationResolver, ARigPushesItsPiecesOutAsWholes) {
+  const SheetThroughSphere c = sheet_through_sphere();
+  const int Na = c.mesh.num_vertices() - c.body_vertices;
+  using Handles = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const MatrixX2i E = unique_edges(c.mesh.F);
+  const auto edge_change = [&](const MatrixX3f& V) {
+    float worst = 0;
+    for (Eigen::Index e = 0; e < E.rows(); ++e)
+      if (E(e, 0) >= c.body_vertices)
+        worst = std::max(worst, std::abs((V.row(E(e, 0)) - V.row(E(e, 1))).norm() -
+                                         (c.mesh.V.row(E(e, 0)) - c.mesh.V.row(E(e, 1))).norm()));
+    return worst;
+  };
+  {
+    PenetrationResolver resolver(c.mesh.F, c.mask);
+    resolver.set_rig(Handles::Zero(Na, 1), MatrixXfR::Ones(Na, 1), 1);
+    MatrixX3f V = c.mesh.V;
+    const PenetrationReport report = resolver.resolve(V);
+    EXPECT_EQ(report.before.inside, 69);
+    EXPECT_EQ(report.smoothed, Na - 69);  // every other sheet vertex moved with the handle
+    const Eigen::RowVector3f move = V.row(c.body_vertices) - c.mesh.V.row(c.body_vertices);
+    EXPECT_GT(move.z(), 0.1f);  // out of the top of the sphere, centimetres
+    for (int i = c.body_vertices; i < c.mesh.num_vertices(); ++i)
+      EXPECT_LT((V.row(i) - c.mesh.V.row(i) - move).norm(), 1e-5f) << "vertex " << i;
+    EXPECT_LT(edge_change(V), 1e-5f);
+    EXPECT_EQ(report.after.inside, resolver.measure(V).inside);
+    EXPECT_LT(report.after.inside, 69);
+    EXPECT_EQ(V.topRows(c.body_vertices), c.mesh.V.topRows(c.body_vertices));
+    // Without the rig the same sheet bends: its edges change by centimetres.
+    PenetrationResolver per_vertex(c.mesh.F, c.mask);
+    MatrixX3f W = c.mesh.V;
+    per_vertex.resolve(W);
+    EXPECT_GT(edge_change(W), 0.02f);
+  }
+  {
+    // Two halves (x < 0 on handle 0, x >= 0 on handle 1), spread off: each half moves as one, by its own push.
+    PenetrationOptions options;
+    options.smoothing_rings = 0;
+    PenetrationResolver resolver(c.mesh.F, c.mask, options);
+    Handles h(Na, 1);
+    for (int k = 0; k < Na; ++k) h(k, 0) = c.mesh.V(c.body_vertices + k, 0) < 0.0f ? 0 : 1;
+    resolver.set_rig(h, MatrixXfR::Ones(Na, 1), 2);
+    MatrixX3f V = c.mesh.V;
+    resolver.resolve(V);
+    for (int side = 0; side < 2; ++side) {
+      int first = -1;
+      for (int k = 0; k < Na; ++k) {
+        if (h(k, 0) != side) continue;
+        const int i = c.body_vertices + k;
+        if (first < 0) first = i;
+        EXPECT_LT((V.row(i) - c.mesh.V.row(i) - (V.row(first) - c.mesh.V.row(first))).norm(), 1e-5f) << i;
+      }
+      EXPECT_GT((V.row(first) - c.mesh.V.row(first)).norm(), 0.05f) << "side " << side;
+    }
+  }
+  // A rig that does not match the apparel is refused.
+  PenetrationResolver resolver(c.mesh.F, c.mask);
+  EXPECT_THROW(resolver.set_rig(Handles::Zero(Na - 1, 1), MatrixXfR::Ones(Na - 1, 1), 1), Error);
+  EXPECT_THROW(resolver.set_rig(Handles::Constant(Na, 1, 3), MatrixXfR::Ones(Na, 1), 2), Error);
+  EXPECT_THROW(resolver.set_rig(Handles::Zero(Na, 1), MatrixXfR::Constant(Na, 1, std::nanf("")), 1), Error);
 }
 
 TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
