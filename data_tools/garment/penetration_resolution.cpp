@@ -321,7 +321,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
         const int k = carried[size_t(t)];
         const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
         still[size_t(k)] = -1.0f;
-        if (!pushing[size_t(k)] && tree.distance(p) > push[size_t(k)].norm()) continue;
+        if (!pushing[size_t(k)] && !tree.within(p, push[size_t(k)].norm())) continue;
         if (!tree.inside(p)) continue;
         Eigen::Vector3f closest;
         const float d = tree.distance(p, &closest, &exposed_);
@@ -398,7 +398,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
       const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
       still[size_t(m)] = -1.0f;
       again[size_t(m)].setZero();
-      if (pushes == 1 && ring[size_t(k)] > 0 && tree.distance(p) > push[size_t(k)].norm()) continue;
+      if (pushes == 1 && ring[size_t(k)] > 0 && !tree.within(p, push[size_t(k)].norm())) continue;
       if (!tree.inside(p)) continue;
       Eigen::Vector3f closest;
       const float d = tree.distance(p, &closest, &exposed_);

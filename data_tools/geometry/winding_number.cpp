@@ -379,6 +379,30 @@ float WindingNumberTree::distance(const Eigen::Vector3f& p, Eigen::Vector3f* clo
   return static_cast<float>(std::sqrt(best2));
 }
 
+bool WindingNumberTree::within(const Eigen::Vector3f& p, float r) const {
+  if (!(r >= 0.0f) || triangles_.empty()) return false;
+  const Eigen::Vector3d q = to_double(p);
+  const double r2 = double(r) * double(r);
+  int32_t stack[kMaxStack];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BoundsNode& node = bounds_[size_t(stack[--top])];
+    if (static_cast<double>(node.box.squaredExteriorDistance(p)) > r2) continue;
+    if (node.is_leaf()) {
+      for (int32_t t = node.first; t < node.first + node.count; ++t) {
+        const Triangle& tri = triangles_[t];
+        const Eigen::Vector3d x = closest_point_on_triangle(q, to_double(tri.a), to_double(tri.b), to_double(tri.c));
+        if ((x - q).squaredNorm() <= r2) return true;
+      }
+    } else {
+      stack[top++] = node.left;
+      stack[top++] = node.right;
+    }
+  }
+  return false;
+}
+
 void WindingNumberTree::refit(const MatrixX3f& V, bool far_field) {
   AMT_CHECK(V.rows() == vertices_.rows(), "WindingNumberTree::refit: V: expected ", vertices_.rows(),
             " vertices (those the tree was built from), found ", V.rows());

@@ -53,6 +53,11 @@ class WindingNumberTree {
   float distance(const Eigen::Vector3f& p, Eigen::Vector3f* closest = nullptr,
                  const std::vector<uint8_t>* faces = nullptr) const;
 
+  /// Whether the surface comes within r (metres, >= 0) of p: distance(p) <= r, visiting only the boxes within r and
+  /// stopping at the first triangle that near (a point far from the body costs a few box tests, where distance()
+  /// has to find the nearest triangle).
+  bool within(const Eigen::Vector3f& p, float r) const;
+
   /// winding_number() of every row of P (#P by 3), in parallel with OpenMP. Returns #P values.
   Eigen::VectorXd winding_numbers(const MatrixX3f& P) const;
 

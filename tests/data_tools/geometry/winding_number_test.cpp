@@ -182,6 +182,28 @@ TEST(WindingNumberDistance, IcosphereAgreesWithTheSphere) {
   }
 }
 
+// within(p, r) is distance(p) <= r: by hand on the cube, and on both sides of each random point's distance.
+TEST(WindingNumberDistance, WithinIsTheDistanceAtMostTheRadius) {
+  const TriMesh cube = unit_cube();
+  const WindingNumberTree cube_tree(cube.V, cube.F);
+  EXPECT_TRUE(cube_tree.within({0.5f, 0.5f, 2.0f}, 1.0f));  // exactly 1 above the top face
+  EXPECT_FALSE(cube_tree.within({0.5f, 0.5f, 2.0f}, 0.99f));
+  EXPECT_TRUE(cube_tree.within({0.5f, 0.5f, 0.5f}, 0.5f));  // the centre, 0.5 from every face
+  EXPECT_FALSE(cube_tree.within({0.5f, 0.5f, 0.5f}, 0.49f));
+  EXPECT_TRUE(cube_tree.within({1.0f, 0.25f, 0.5f}, 0.0f));  // on the surface
+  EXPECT_FALSE(cube_tree.within({0.5f, 0.5f, 2.0f}, -1.0f));
+  const TriMesh sphere = icosphere(3, 0.8f, Eigen::Vector3f(0.1f, -0.2f, 0.3f));
+  const WindingNumberTree tree(sphere.V, sphere.F);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> offset(-1.6f, 1.6f);
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3f p(offset(rng), offset(rng), offset(rng));
+    const float d = tree.distance(p);
+    EXPECT_TRUE(tree.within(p, d * 1.001f + 1e-6f)) << p.transpose();
+    EXPECT_FALSE(tree.within(p, d * 0.999f - 1e-6f)) << p.transpose();
+  }
+}
+
 // A tree built on a sphere and refitted to a bent, stretched, moved copy answers as a tree built
 // fresh on that copy: winding numbers within the far field's tolerance of the fresh tree's and of the
 // exact sum, the same inside verdicts away from the surface, the same distances and closest points.
