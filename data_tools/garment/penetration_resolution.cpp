@@ -263,6 +263,62 @@ std::vector<int> PenetrationResolver::spread_through_rig(const std::vector<uint8
   return carried;
 }
 
+void PenetrationResolver::keep_lengths(MatrixX3f& V, const MatrixX3f& start, const std::vector<uint8_t>& moved,
+                                       std::vector<uint8_t>& inside, std::vector<float>& depth) const {
+  const WindingNumberTree& tree = *tree_;
+  std::vector<int> list;
+  for (int k = 0; k < int(moved.size()); ++k)
+    if (moved[size_t(k)]) list.push_back(k);
+  std::vector<Eigen::Vector3f> step(list.size());
+  for (int iteration = 0; iteration < options_.length_iterations; ++iteration) {
+    // Every edge between moved apparel vertices (or from one to a vertex that stays) asks for the length it had before
+    // the push; a moved vertex takes the mean of its requests (Jacobi: independent of the order).
+#pragma omp parallel for schedule(dynamic, 256)
+    for (int t = 0; t < int(list.size()); ++t) {
+      const int k = list[size_t(t)];
+      const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      int count = 0;
+      for (int n = apparel_adjacency_.offsets[size_t(k)]; n < apparel_adjacency_.offsets[size_t(k) + 1]; ++n) {
+        const int m = apparel_adjacency_.neighbors[size_t(n)];
+        const Eigen::Vector3f d = p - V.row(apparel_[size_t(m)]).transpose();
+        const float length = d.norm();
+        if (!(length > 1e-9f)) continue;
+        const float rest = (start.row(k) - start.row(m)).norm();
+        sum += (moved[size_t(m)] ? 0.5f : 1.0f) * ((rest - length) / length) * d;
+        ++count;
+      }
+      step[size_t(t)] = count > 0 ? Eigen::Vector3f(sum / float(count)) : Eigen::Vector3f::Zero();
+    }
+    for (size_t t = 0; t < list.size(); ++t) V.row(apparel_[size_t(list[t])]) += step[t].transpose();
+      // Then out of the body again, one vertex at a time: a vertex outside before the step and farther from the body
+      // than it moved is still outside.
+#pragma omp parallel for schedule(dynamic, 64)
+    for (int t = 0; t < int(list.size()); ++t) {
+      const int k = list[size_t(t)];
+      const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+      if (!inside[size_t(k)] && !tree.within(p, step[size_t(t)].norm())) continue;
+      inside[size_t(k)] = 0;
+      if (!tree.inside(p)) continue;
+      Eigen::Vector3f closest;
+      const float d = tree.distance(p, &closest, &exposed_);
+      if (d > 1e-9f) V.row(apparel_[size_t(k)]) += ((closest - p) * ((d + options_.margin) / d)).transpose();
+      // Out unless pushed into an overlapping part: known at the end.
+      inside[size_t(k)] = 2;
+      depth[size_t(k)] = d;
+    }
+  }
+  // The vertices pushed in the last pass are tested once more: inside after it counts as inside after.
+#pragma omp parallel for schedule(dynamic, 64)
+  for (int t = 0; t < int(list.size()); ++t) {
+    const int k = list[size_t(t)];
+    if (inside[size_t(k)] != 2) continue;
+    const Eigen::Vector3f p = V.row(apparel_[size_t(k)]).transpose();
+    inside[size_t(k)] = tree.inside(p) ? 1 : 0;
+    if (inside[size_t(k)]) depth[size_t(k)] = tree.distance(p, nullptr, &exposed_);
+  }
+}
+
 PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
   PenetrationReport report;
   const int Na = int(apparel_.size());
@@ -309,6 +365,9 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     // handles, up to kMaxPushes rounds; what is inside after the last stays.
     std::vector<uint8_t> pushing(size_t(Na), 0), moved(size_t(Na), 0);
     for (int k = 0; k < Na; ++k) pushing[size_t(k)] = inside[size_t(k)] && !tucked(k);
+    // The apparel as it came (its edge lengths are what the pieces keep through the push; below).
+    MatrixX3f start(options_.length_iterations > 0 ? Na : 0, 3);
+    for (int k = 0; k < start.rows(); ++k) start.row(k) = V.row(apparel_[size_t(k)]);
     std::vector<float> still(size_t(Na), -1.0f);
     tree_->update_far_field();  // when every verdict carried over, classify() did not need it
     for (int round = 1;; ++round) {
@@ -334,6 +393,7 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
       for (int k : carried) any |= (pushing[size_t(k)] = still[size_t(k)] >= 0.0f) != 0;
       if (!any || round == kMaxPushes) break;
     }
+    if (options_.length_iterations > 0) keep_lengths(V, start, moved, pushing, still);
     for (int k = 0; k < Na; ++k) {
       if (pushing[size_t(k)]) ++report.after.inside, report.after.depth_sum_cm += 100.0 * double(still[size_t(k)]);
       if (moved[size_t(k)] && !inside[size_t(k)]) ++report.smoothed;

@@ -57,8 +57,12 @@ namespace amt {
 ///                   where they are: an artist's model tucks hair roots into the scalp and hems under a collar,
 ///                   and its own physics keeps them there (no collision between the two); pushing them out moves
 ///                   them centimetres off the model. Off for a garment fitted to another body (cloth retargeting).
+///   length_iterations  with a rig (set_rig): passes, after the pushes, in which the moved apparel vertices take back
+///                   the edge lengths they had before the push (one Jacobi projection over the apparel edges, then
+///                   a per-vertex push of any vertex that went back inside); 0: none
 struct PenetrationOptions {
   float margin = 0.003f;
+  int length_iterations = 4;
   int smoothing_rings = 2;
   float falloff = 0.5f;
   bool keep_rest_penetration = false;
@@ -133,6 +137,12 @@ class PenetrationResolver {
  private:
   // The tree over the body surface (holes filled) posed as in V: built on the first call, refitted after.
   const WindingNumberTree& posed_body(const MatrixX3f& V);
+
+  // The edge-length passes of a push through the rig (PenetrationOptions::length_iterations) on V, whose apparel was
+  // at `start` (num_apparel() x 3) before the push: `moved` marks the vertices the push moved, `inside` (1: inside)
+  // and `depth` the verdicts after the push, updated.
+  void keep_lengths(MatrixX3f& V, const MatrixX3f& start, const std::vector<uint8_t>& moved,
+                    std::vector<uint8_t>& inside, std::vector<float>& depth) const;
 
   // The pushes of the vertices marked in `pushing` (by apparel position) spread through the rig (set_rig): `push`
   // receives every carried vertex's move; returns the carried vertices, ascending.
