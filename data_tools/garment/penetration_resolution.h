@@ -4,7 +4,9 @@
 // their depth plus a small margin, as in the paper "Cloth Motion Retargeting"
 // (section 3.2: "moving the penetrating cloth vertices in the direction of the normal vectors ... by the
 // extent of the penetrations"); the push is then spread to the untouched apparel neighbours with a decaying
-// weight, so that a pushed vertex does not become a spike in its garment.
+// weight, so that a pushed vertex does not become a spike in its garment. Apparel that moves on handles is pushed
+// through them instead (set_rig): a piece moves out as a piece, and a few passes give the moved vertices back their
+// edge lengths (PenetrationOptions::length_iterations).
 //
 // Inside test: the generalized winding number (data_tools/geometry/winding_number.h) against the body part,
 // the faces whose three vertices are body vertices, posed as in the frame, with the holes left where
