@@ -1,6 +1,7 @@
 #include "data_tools/garment/penetration_resolution.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "data_tools/geometry/error.h"
@@ -270,6 +271,23 @@ void PenetrationResolver::keep_lengths(MatrixX3f& V, const MatrixX3f& start, con
   for (int k = 0; k < int(moved.size()); ++k)
     if (moved[size_t(k)]) list.push_back(k);
   std::vector<Eigen::Vector3f> step(list.size());
+  // Vertices at one point before the push (the copies of a split seam, which follow the same handles) take one step:
+  // their edges differ (each copy has its own side's faces), and steps of their own would open the seam.
+  std::vector<int> order(list.size());
+  for (size_t t = 0; t < order.size(); ++t) order[t] = int(t);
+  const auto position = [&](int t) {
+    const auto r = start.row(list[size_t(t)]);
+    return std::array<float, 3>{r(0), r(1), r(2)};
+  };
+  std::sort(order.begin(), order.end(),
+            [&](int x, int y) { return std::make_pair(position(x), x) < std::make_pair(position(y), y); });
+  std::vector<std::pair<int, int>> copies;  // (first, end) ranges of `order` with one position, two or more long
+  for (size_t i = 0; i < order.size();) {
+    size_t j = i + 1;
+    while (j < order.size() && position(order[j]) == position(order[i])) ++j;
+    if (j - i > 1) copies.emplace_back(int(i), int(j));
+    i = j;
+  }
   for (int iteration = 0; iteration < options_.length_iterations; ++iteration) {
     // Every edge between moved apparel vertices (or from one to a vertex that stays) asks for the length it had before
     // the push; a moved vertex takes the mean of its requests (Jacobi: independent of the order).
@@ -289,6 +307,12 @@ void PenetrationResolver::keep_lengths(MatrixX3f& V, const MatrixX3f& start, con
         ++count;
       }
       step[size_t(t)] = count > 0 ? Eigen::Vector3f(sum / float(count)) : Eigen::Vector3f::Zero();
+    }
+    for (const auto& [first, end] : copies) {
+      Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+      for (int i = first; i < end; ++i) mean += step[size_t(order[size_t(i)])];
+      mean /= float(end - first);
+      for (int i = first; i < end; ++i) step[size_t(order[size_t(i)])] = mean;
     }
     for (size_t t = 0; t < list.size(); ++t) V.row(apparel_[size_t(list[t])]) += step[t].transpose();
       // Then out of the body again, one vertex at a time: a vertex outside before the step and farther from the body

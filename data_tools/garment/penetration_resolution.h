@@ -61,7 +61,8 @@ namespace amt {
 ///                   them centimetres off the model. Off for a garment fitted to another body (cloth retargeting).
 ///   length_iterations  with a rig (set_rig): passes, after the pushes, in which the moved apparel vertices take back
 ///                   the edge lengths they had before the push (one Jacobi projection over the apparel edges, then
-///                   a per-vertex push of any vertex that went back inside); 0: none
+///                   a per-vertex push of any vertex that went back inside; vertices at one point before the push,
+///                   a split seam's copies, take one step); 0: none
 struct PenetrationOptions {
   float margin = 0.003f;
   int length_iterations = 4;

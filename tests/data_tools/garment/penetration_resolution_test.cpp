@@ -347,6 +347,44 @@ TEST(PenetrationResolver, LengthPassesMendWhatThePushThroughTheRigStretched) {
   EXPECT_LT(change[1], 0.5f * change[0]);
 }
 
+// A sheet split along a seam (two grids sharing the column x = 0, each with its own copy of it, as an artist's UV
+// split leaves a mesh), both copies on the same handle: the push and the length passes move the copies as one,
+// although each copy's edges lie on its own side.
+TEST(PenetrationResolver, TheLengthPassesKeepASplitSeamClosed) {
+  const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 32, 16);
+  TriMesh left = grid(11, 21, 0.06f), right = grid(11, 21, 0.06f);
+  left.V.rowwise() += Eigen::RowVector3f(-0.6f, -0.6f, 0.1f);
+  right.V.rowwise() += Eigen::RowVector3f(0.0f, -0.6f, 0.1f);
+  for (int j = 0; j < 21; ++j) right.V.row(j * 11) = left.V.row(j * 11 + 10);  // the copies, bit for bit
+  const TriMesh mesh = merge_meshes({sphere, left, right});
+  const int body = sphere.num_vertices(), Na = mesh.num_vertices() - body;
+  std::vector<uint8_t> mask(size_t(mesh.num_vertices()), 0);
+  for (int i = body; i < mesh.num_vertices(); ++i) mask[size_t(i)] = 1;
+  using Handles = Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  Handles h(Na, 1);
+  for (int k = 0; k < Na; ++k) h(k, 0) = mesh.V(body + k, 0) < 0.05f ? 0 : 1;
+  PenetrationOptions options;
+  options.smoothing_rings = 0;
+  options.length_iterations = 8;
+  PenetrationResolver resolver(mesh.F, mask, options);
+  resolver.set_rig(h, MatrixXfR::Ones(Na, 1), 2);
+  MatrixX3f V = mesh.V;
+  const PenetrationReport report = resolver.resolve(V);
+  EXPECT_GT(report.pushed, 0);
+  int pairs = 0;
+  float gap = 0, moved = 0;
+  for (int j = 0; j < 21; ++j) {
+    const int a = body + j * 11 + 10, b = body + 11 * 21 + j * 11;  // left's last column, right's first
+    ASSERT_EQ(mesh.V.row(a), mesh.V.row(b));
+    gap = std::max(gap, (V.row(a) - V.row(b)).norm());
+    moved = std::max(moved, (V.row(a) - mesh.V.row(a)).norm());
+    ++pairs;
+  }
+  EXPECT_EQ(pairs, 21);
+  EXPECT_GT(moved, 0.05f);  // the seam crosses the sphere: it was pushed
+  EXPECT_EQ(gap, 0.0f);
+}
+
 TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
   const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 8, 6);
   PenetrationResolver body_only(sphere.F, std::vector<uint8_t>(size_t(sphere.num_vertices()), 0));
