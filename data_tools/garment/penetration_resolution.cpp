@@ -177,6 +177,44 @@ Penetration PenetrationResolver::measure(const MatrixX3f& V, int* carried) {
   return p;
 }
 
+namespace {
+
+// The runs of points at one position among n points (position(i) a 3-vector expression): `order` receives the points
+// sorted by position, and the result the [first, end) ranges of `order` two or more long whose positions are equal
+// bit for bit (the copies of a split seam are).
+template <typename Position>
+std::vector<std::pair<int, int>> coincident_runs(int n, const Position& position, std::vector<int>& order) {
+  const auto key = [&](int i) {
+    const Eigen::Vector3f p = position(i);
+    return std::array<float, 3>{p(0), p(1), p(2)};
+  };
+  order.resize(size_t(n));
+  for (int i = 0; i < n; ++i) order[size_t(i)] = i;
+  std::sort(order.begin(), order.end(),
+            [&](int x, int y) { return std::make_pair(key(x), x) < std::make_pair(key(y), y); });
+  std::vector<std::pair<int, int>> runs;
+  for (int i = 0; i < n;) {
+    int j = i + 1;
+    while (j < n && key(order[size_t(j)]) == key(order[size_t(i)])) ++j;
+    if (j - i > 1) runs.emplace_back(i, j);
+    i = j;
+  }
+  return runs;
+}
+
+// Every run of coincident points (coincident_runs) takes the mean of its members' moves (move(i) a reference).
+template <typename Move>
+void take_one_move(const std::vector<std::pair<int, int>>& runs, const std::vector<int>& order, const Move& move) {
+  for (const auto& [first, end] : runs) {
+    Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+    for (int i = first; i < end; ++i) mean += move(order[size_t(i)]);
+    mean /= float(end - first);
+    for (int i = first; i < end; ++i) move(order[size_t(i)]) = mean;
+  }
+}
+
+}  // namespace
+
 void PenetrationResolver::set_rig(
     const Eigen::Matrix<int32_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& vertex_handles,
     const MatrixXfR& vertex_weights, int num_handles) {
@@ -273,21 +311,9 @@ void PenetrationResolver::keep_lengths(MatrixX3f& V, const MatrixX3f& start, con
   std::vector<Eigen::Vector3f> step(list.size());
   // Vertices at one point before the push (the copies of a split seam, which follow the same handles) take one step:
   // their edges differ (each copy has its own side's faces), and steps of their own would open the seam.
-  std::vector<int> order(list.size());
-  for (size_t t = 0; t < order.size(); ++t) order[t] = int(t);
-  const auto position = [&](int t) {
-    const auto r = start.row(list[size_t(t)]);
-    return std::array<float, 3>{r(0), r(1), r(2)};
-  };
-  std::sort(order.begin(), order.end(),
-            [&](int x, int y) { return std::make_pair(position(x), x) < std::make_pair(position(y), y); });
-  std::vector<std::pair<int, int>> copies;  // (first, end) ranges of `order` with one position, two or more long
-  for (size_t i = 0; i < order.size();) {
-    size_t j = i + 1;
-    while (j < order.size() && position(order[j]) == position(order[i])) ++j;
-    if (j - i > 1) copies.emplace_back(int(i), int(j));
-    i = j;
-  }
+  std::vector<int> order;
+  const std::vector<std::pair<int, int>> copies = coincident_runs(
+      int(list.size()), [&](int t) { return start.row(list[size_t(t)]); }, order);
   for (int iteration = 0; iteration < options_.length_iterations; ++iteration) {
     // Every edge between moved apparel vertices (or from one to a vertex that stays) asks for the length it had before
     // the push; a moved vertex takes the mean of its requests (Jacobi: independent of the order).
@@ -308,12 +334,7 @@ void PenetrationResolver::keep_lengths(MatrixX3f& V, const MatrixX3f& start, con
       }
       step[size_t(t)] = count > 0 ? Eigen::Vector3f(sum / float(count)) : Eigen::Vector3f::Zero();
     }
-    for (const auto& [first, end] : copies) {
-      Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-      for (int i = first; i < end; ++i) mean += step[size_t(order[size_t(i)])];
-      mean /= float(end - first);
-      for (int i = first; i < end; ++i) step[size_t(order[size_t(i)])] = mean;
-    }
+    take_one_move(copies, order, [&](int i) -> Eigen::Vector3f& { return step[size_t(i)]; });
     for (size_t t = 0; t < list.size(); ++t) V.row(apparel_[size_t(list[t])]) += step[t].transpose();
       // Then out of the body again, one vertex at a time: a vertex outside before the step and farther from the body
       // than it moved is still outside.
@@ -457,6 +478,15 @@ PenetrationReport PenetrationResolver::resolve(MatrixX3f& V) {
     }
     report.smoothed += int(next.size());
     frontier = std::move(next);
+  }
+  // The copies of a split seam (at one point) take one push: each copy's ring neighbours lie on its own side.
+  {
+    std::vector<int> spread, order;
+    for (int k = 0; k < Na; ++k)
+      if (ring[size_t(k)] >= 0) spread.push_back(k);
+    const std::vector<std::pair<int, int>> copies = coincident_runs(
+        int(spread.size()), [&](int t) { return V.row(apparel_[size_t(spread[size_t(t)])]).transpose(); }, order);
+    take_one_move(copies, order, [&](int t) -> Eigen::Vector3f& { return push[size_t(spread[size_t(t)])]; });
   }
   // Apply, then re-test the moved vertices (the others keep their verdict: outside); one still inside
   // (pushed out of one part into an overlapping one) is pushed again, up to kMaxPushes pushes in all.

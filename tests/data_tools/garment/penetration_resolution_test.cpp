@@ -349,7 +349,7 @@ TEST(PenetrationResolver, LengthPassesMendWhatThePushThroughTheRigStretched) {
 
 // A sheet split along a seam (two grids sharing the column x = 0, each with its own copy of it, as an artist's UV
 // split leaves a mesh), both copies on the same handle: the push and the length passes move the copies as one,
-// although each copy's edges lie on its own side.
+// although each copy's edges lie on its own side; so do the rings without a rig.
 TEST(PenetrationResolver, TheLengthPassesKeepASplitSeamClosed) {
   const TriMesh sphere = uv_sphere(Eigen::Vector3f::Zero(), 0.3f, 32, 16);
   TriMesh left = grid(11, 21, 0.06f), right = grid(11, 21, 0.06f);
@@ -383,6 +383,18 @@ TEST(PenetrationResolver, TheLengthPassesKeepASplitSeamClosed) {
   EXPECT_EQ(pairs, 21);
   EXPECT_GT(moved, 0.05f);  // the seam crosses the sphere: it was pushed
   EXPECT_EQ(gap, 0.0f);
+  // Without a rig the rings spread the pushes over each copy's own side; the copies still take one push.
+  PenetrationResolver rings(mesh.F, mask);
+  MatrixX3f W = mesh.V;
+  rings.resolve(W);
+  float ring_gap = 0, ring_moved = 0;
+  for (int j = 0; j < 21; ++j) {
+    const int a = body + j * 11 + 10, b = body + 11 * 21 + j * 11;
+    ring_gap = std::max(ring_gap, (W.row(a) - W.row(b)).norm());
+    ring_moved = std::max(ring_moved, (W.row(a) - mesh.V.row(a)).norm());
+  }
+  EXPECT_GT(ring_moved, 0.05f);
+  EXPECT_EQ(ring_gap, 0.0f);
 }
 
 TEST(PenetrationResolver, NothingToDoWithoutApparelOrBody) {
