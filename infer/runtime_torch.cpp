@@ -734,8 +734,8 @@ std::vector<std::filesystem::path> calibration_motions(const std::string& model_
 
 // The key of a swing fitted on the character's own physics (CachedSwingFit): over the bind's key `bind_key` and what
 // fit_swing_on_own_physics reads besides the bind: the character's files (its physics), each calibration motion's name
-// and bytes (the model's checkpoints are in the bind's key), the stretch limit, the lead-in and the calibration's
-// length and rate.
+// and bytes (the model's checkpoints are in the bind's key), the stretch limit, the lead-in, the calibration's
+// length and rate and the largest gain it gives.
 std::string swing_fit_key(const AnimateOptions& o, const std::string& bind_key) {
   uint64_t h = fnv1a64(bind_key.data(), bind_key.size());
   for (const std::string* file : {&o.character.spec, &o.character.joints, &o.character.joint_map}) {
@@ -748,8 +748,8 @@ std::string swing_fit_key(const AnimateOptions& o, const std::string& bind_key) 
     h = fnv1a64(name.data(), name.size() + 1, h);
     h = fnv1a64_file(path.string(), "a calibration motion", h);
   }
-  const double settings[4] = {double(o.strain_limit), double(std::max(1, o.playback.lead_in)), kSwingCalibrationSeconds,
-                              double(kApparelStepFps)};
+  const double settings[5] = {double(o.strain_limit), double(std::max(1, o.playback.lead_in)), kSwingCalibrationSeconds,
+                              double(kApparelStepFps), kMaxSwingGain};
   h = fnv1a64(settings, sizeof(settings), h);
   char text[40];
   std::snprintf(text, sizeof(text), "fnv1a64:%016llx", static_cast<unsigned long long>(h));
@@ -838,11 +838,12 @@ std::string fit_swing_on_own_physics(const AnimateOptions& o, const ModelBundle&
   char text[512];
   std::snprintf(text, sizeof(text),
                 "fitted on the rig's own physics over %.1f s of %s (%s; --swing-calibration auto): %.0f %% of the "
-                "apparel calmed, gain median %.2f, lowest %.2f",
+                "apparel calmed, %.0f %% livened, gain median %.2f, lowest %.2f, highest %.2f",
                 double(frames) / double(kApparelStepFps),
                 runs.size() == 1 ? "the calibration motion" : "the calibration motions", names.c_str(),
-                100.0 * g.lt(0.999f).to(at::kFloat).mean().item<double>(), g.median().item<double>(),
-                g.min().item<double>());
+                100.0 * g.lt(0.999f).to(at::kFloat).mean().item<double>(),
+                100.0 * g.gt(1.001f).to(at::kFloat).mean().item<double>(), g.median().item<double>(),
+                g.min().item<double>(), g.max().item<double>());
   return text;
 }
 

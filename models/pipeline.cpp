@@ -560,8 +560,14 @@ PipelineStepper::PipelineStepper(const ModelBundle& bundle, const BoundCharacter
     const at::Tensor& gain = character_.apparel_swing_gain;
     AMT_CHECK(gain.dim() == 1 && gain.size(0) == character_.num_apparel(), "pipeline: swing gain: expected (",
               character_.num_apparel(), "), found ", gain.sizes());
-    // Every gain 1: the module's output exactly, not S + 1 (Â - S) rounded.
-    if (gain.lt(1.0f).any().item<bool>()) swing_gain_ = gain.to(at::kFloat).unsqueeze(1).contiguous();
+    // A gain below 1 scales what the stepper shows (below); every gain 1 is the module's output exactly, not
+    // S + 1 (Â - S) rounded. A gain above 1 scales the handles' offsets before the vertices follow them turning, and
+    // the stretch limit applies after it, so a livened piece swings further as a piece. A module that moves vertices
+    // is not livened: its offsets scaled up would stretch the piece past the limit the stepper keeps.
+    const at::Tensor g = gain.to(at::kFloat);
+    if (g.lt(1.0f).any().item<bool>()) swing_gain_ = g.clamp_max(1.0f).unsqueeze(1).contiguous();
+    if (rig_.defined() && g.gt(1.0f).any().item<bool>())
+      handle_gain_ = g.clamp_min(1.0f).index_select(0, rig_.rows).unsqueeze(1).contiguous();
   }
   set_strain_limit(kDefaultStrainLimit);
   reset(history);
@@ -670,9 +676,12 @@ StepOutput PipelineStepper::step_detailed(const at::Tensor& joint_transforms, St
                                    .ptr()
                                    ->step(handle_history_.unsqueeze(0), window_T, window_S_h, handle_graph_)
                                    .squeeze(0);
-        out.A_hat =
-            turning_handles_ ? follow_turning_handles(A_h, S_h, anchor, rig_) : follow_handles(A_h, S_h, anchor, rig_);
+        // What the handles show swings by the calibrated gain (swing_calibration); the module keeps its own A_h.
+        const at::Tensor shown = handle_gain_.defined() ? S_h + handle_gain_ * (A_h - S_h) : A_h;
+        out.A_hat = turning_handles_ ? follow_turning_handles(shown, S_h, anchor, rig_)
+                                     : follow_handles(shown, S_h, anchor, rig_);
         handle_history_ = at::cat({handle_history_.narrow(0, 1, 2), A_h.unsqueeze(0)}, 0);
+        out.A_handles = A_h;
         handle_history_anchors_ = window_S_h.squeeze(0).narrow(0, 1, 3);
       } else if (source_ == ApparelSource::kNetwork) {
         out.A_hat = bundle_.apparel_dynamics_for(character_.given_weights)
@@ -797,11 +806,14 @@ SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor
   out.piece_vertices = at::zeros({P}, at::kLong).index_add_(0, out.piece_of, at::ones({N_a}, at::kLong));
   // A piece the module leaves on its anchor (|Â - S| below a micrometre per vertex and frame) has nothing to scale.
   const at::Tensor moved = den.gt(1e-12 * double(A_hat.size(0)) * out.piece_vertices.to(at::kDouble));
-  const at::Tensor scale = at::where(moved, num / den.clamp_min(1e-30), at::ones({P}, at::kDouble)).clamp(0.0, 1.0);
+  const at::Tensor scale =
+      at::where(moved, num / den.clamp_min(1e-30), at::ones({P}, at::kDouble)).clamp(0.0, kMaxSwingGain);
   // The module loses to rigid skinning on the piece (|Â - G|^2 > |S - G|^2) exactly when the scale is below 1/2: taken
-  // as fitted there; kept at 1 from 3/4 up, where the module clearly wins (on lively rigs the scale fitted on one
+  // as fitted there; kept at 1 from 3/4 to 1, where the module clearly wins (on lively rigs the scale fitted on one
   // motion falls below 1 with the module's phase, and 1 measured better on other motions); linear between.
-  out.piece_gain = at::where(scale.le(0.5), scale, (2.0 * scale - 0.5).clamp_max(1.0)).to(at::kFloat);
+  // Above 1 the module swings in step with the rig but less far: livened by the scale (at most kMaxSwingGain).
+  out.piece_gain = at::where(scale.le(0.5), scale, at::where(scale.le(1.0), (2.0 * scale - 0.5).clamp_max(1.0), scale))
+                       .to(at::kFloat);
   out.gain = out.piece_gain.index_select(0, out.piece_of);
   return out;
 }

@@ -299,6 +299,9 @@ struct StepOutput {
   at::Tensor V_hat;
   /// B̂ (N_b, 3) and Â (N_a, 3) before tiling (undefined for kBodyOnly, where V̂ is B̂ of every vertex).
   at::Tensor B_hat, A_hat;
+  /// (H, 3) the handles the apparel module moved, before the swing gain (its own state); undefined when the module
+  /// moves vertices.
+  at::Tensor A_handles;
 };
 
 /// Wall time of the stages of one step, seconds (PipelineStepper::step with a StepTimes to fill).
@@ -383,6 +386,8 @@ class PipelineStepper {
   // (N_a, 1) the swing gain of the character (BoundCharacter::apparel_swing_gain) for the local module; undefined:
   // none.
   at::Tensor swing_gain_;
+  // (H, 1) the swing gain at the handles when the module moves handles: applied before the vertices follow them.
+  at::Tensor handle_gain_;
 };
 
 // === Calibrating the swing on the character's own physics
@@ -396,7 +401,9 @@ class PipelineStepper {
 /// topology, gain = clamp(mean over its vertices of share x (swing during + after) / swing_reference, 0, 1). The
 /// stepper then outputs S + gain (Â - S) and keeps the module's own Â as its history: the module runs as trained and
 /// only what it shows is scaled; a gain that is the same over a piece cannot tear it. On rigs as lively as the
-/// training data's every gain is 1.
+/// training data's every gain is 1. A fitted gain may exceed 1 (fit_swing_calibration, up to kMaxSwingGain): on
+/// handles it scales the handles' offsets before the vertices follow them turning (StepOutput::A_handles keeps the
+/// module's own), and a module that moves vertices is not livened.
 struct SwingCalibration {
   /// (N_a) float gain per apparel vertex (BoundCharacter::apparel_swing_gain); undefined from apparel_piece_swing.
   at::Tensor gain;
@@ -424,15 +431,22 @@ double swing_reference(const std::vector<SwingCalibration>& characters);
 /// The swing calibration fitted on the character's own physics over a calibration motion: the module (uncalibrated)
 /// and the character's own simulation run through the same motion, and each apparel piece gets the scale that brings
 /// the module's offsets from the anchor skinning closest to the simulation's, in least squares:
-/// scale = clamp(sum <Â - S, G - S> / sum |Â - S|^2, 0, 1) over the piece's vertices and the frames (1 for a piece the
-/// module does not move). The gain is the scale where the module loses to rigid skinning on the motion (scale < 1/2,
-/// the same as |Â - G|^2 > |S - G|^2), 1 where it clearly wins (scale >= 3/4) and 2 scale - 1/2 between: a piece
-/// whose learned swing is unrelated to the rig's is calmed towards rigid skinning, one whose swing follows it keeps it.
+/// scale = clamp(sum <Â - S, G - S> / sum |Â - S|^2, 0, kMaxSwingGain) over the piece's vertices and the frames (1 for
+/// a piece the module does not move). The gain is the scale where the module loses to rigid skinning on the motion
+/// (scale < 1/2, the same as |Â - G|^2 > |S - G|^2), 1 where it clearly wins (3/4 <= scale <= 1), 2 scale - 1/2
+/// between, and the scale above 1: a piece whose learned swing is unrelated to the rig's is calmed towards rigid
+/// skinning, one whose swing follows it keeps it, and one that swings in step with the rig but less far is livened.
 ///   A_hat, S, G (T, N_a, 3): the module's apparel, its anchor skinning and the simulation's, on the same frames;
 ///   apparel_edges (E_a, 2) int64 positions in the apparel list (the pieces). Throws amt::Error on shapes that do
 ///   not match or non-finite input.
 SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor& S, const at::Tensor& G,
                                        const at::Tensor& apparel_edges);
+
+/// The largest gain of a fitted swing calibration (fit_swing_calibration): a piece the module moves in step with the
+/// rig's physics but less far than it (least-squares scale above 1) swings up to this much further. On the PMX export
+/// of held-out character 13, whose scale is 1.5 and more, 1.25 measured best (docs/runtime.md, "Livened swing"): 1.5
+/// swung further than its physics' and tore more where the twin tails are pushed out of the back.
+inline constexpr double kMaxSwingGain = 1.25;
 
 /// How much of each motion the fitted swing calibration runs (fit_swing_on_motions): `amt animate`'s calibration
 /// motions, `amt eval`'s other clips of the character.

@@ -221,7 +221,8 @@ TEST(ApparelDynamics, ResponseInputsAreTheLastChannelsAndAWidenedModuleComputesI
   EXPECT_TRUE(at::allclose(widened->step(A, T, S, g).detach(), expected, 1e-6, 1e-6));
   {
     c10::InferenceMode inference;
-    EXPECT_TRUE(at::allclose(widened->step(A, T, S, g), expected, 1e-6, 1e-6));
+    // To float rounding: the fused path sums in another order (7.6e-6 apart on one CPU, 1e-6 on another).
+    EXPECT_LT((widened->step(A, T, S, g) - expected).abs().max().item<float>(), 5e-5f);
   }
   // Moved weights: the response now changes the output, the same on both paths.
   {

@@ -18,6 +18,7 @@
 #include "data_tools/geometry/lbs_torch.h"
 #include "fresh_model.h"
 #include "micro_dataset.h"
+#include "models/apparel_handles.h"
 #include "models/module_options.h"
 #include "models/pipeline.h"
 #include "tests/test_support.h"
@@ -53,9 +54,10 @@ TEST(SwingCalibration, PiecesAreTheApparelsConnectedPartsWithTheirRigsMeanSwing)
   EXPECT_THROW(apparel_piece_swing(response, at::tensor({0, 5}, at::kLong).view({1, 2})), Error);
 }
 
-TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroOne) {
+TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroAndTheLargestGain) {
   // Four pieces of two vertices each (edges 0-1, 2-3, 4-5, 6-7), three frames. The module's offsets d = Â - S are
-  // arbitrary; the simulation's G - S is 0.5 d on piece 0 (gain 0.5), 2 d on piece 1 (clamped to 1), -d on piece 2
+  // arbitrary; the simulation's G - S is 0.5 d on piece 0 (gain 0.5), 2 d on piece 1 (clamped to kMaxSwingGain), -d on
+  // piece 2
   // (clamped to 0); piece 3 the module leaves on its anchor (gain 1, nothing to scale).
   at::manual_seed(7);
   const int64_t T = 3, N_a = 8;
@@ -71,7 +73,7 @@ TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroOne) 
   const SwingCalibration fit = fit_swing_calibration(S + d, S, S + g, edges);
   ASSERT_EQ(fit.piece_gain.size(0), 4);
   EXPECT_NEAR(fit.piece_gain[0].item<float>(), 0.5f, 1e-5f);
-  EXPECT_FLOAT_EQ(fit.piece_gain[1].item<float>(), 1.0f);
+  EXPECT_FLOAT_EQ(fit.piece_gain[1].item<float>(), float(kMaxSwingGain));
   EXPECT_FLOAT_EQ(fit.piece_gain[2].item<float>(), 0.0f);
   EXPECT_FLOAT_EQ(fit.piece_gain[3].item<float>(), 1.0f);
   // Per vertex: its piece's gain.
@@ -85,8 +87,11 @@ TEST(SwingCalibration, FittedGainIsEachPiecesLeastSquaresScaleClampedToZeroOne) 
   e -= dp * ((e * dp).sum() / (dp * dp).sum());
   h.narrow(1, 0, 2).add_(e);
   EXPECT_NEAR(fit_swing_calibration(S + d, S, S + h, edges).piece_gain[0].item<float>(), 0.5f, 1e-4f);
-  // Scales above 1/2 (the module beats rigid skinning): 0.6 -> 2 x 0.6 - 0.5 = 0.7, 0.8 -> 1; 0.3 stays.
-  for (const auto& [scale, gain] : std::vector<std::pair<double, float>>{{0.3, 0.3f}, {0.6, 0.7f}, {0.8, 1.0f}}) {
+  // Scales above 1/2 (the module beats rigid skinning): 0.6 -> 2 x 0.6 - 0.5 = 0.7, 0.8 -> 1; 0.3 stays; above 1
+  // the module swings in step but less far: 1.1 stays (livened), 1.4 -> kMaxSwingGain = 1.25.
+  ASSERT_EQ(kMaxSwingGain, 1.25);
+  for (const auto& [scale, gain] : std::vector<std::pair<double, float>>{
+           {0.3, 0.3f}, {0.6, 0.7f}, {0.8, 1.0f}, {1.0, 1.0f}, {1.1, 1.1f}, {1.4, 1.25f}}) {
     at::Tensor k = g.clone();
     k.narrow(1, 0, 2).copy_(d.narrow(1, 0, 2) * scale);
     EXPECT_NEAR(fit_swing_calibration(S + d, S, S + k, edges).piece_gain[0].item<float>(), gain, 1e-4f) << scale;
@@ -143,30 +148,54 @@ Bound bound_micro(const std::string& name, double handle_spacing) {
 }
 
 // The stepper shows S + gain (Â - S) and keeps the module's own Â as its state: gain 0 is the anchor (rigid
-// skinning by the anchor weights), gain 1 the module as trained, and the history equals the ungained stepper's.
+// skinning by the anchor weights), gain 1 the module as trained, and the history equals the ungained stepper's. A gain
+// above 1 scales the handles' offsets, and the vertices follow them turning (follow_turning_handles); a module that
+// moves vertices is not livened (a gain above 1 shows the module as trained).
 void check_gained_stepper(const Bound& b) {
   ASSERT_GT(b.character.num_apparel(), 0);
   const int64_t N_a = b.character.num_apparel();
-  BoundCharacter zero = b.character, third = b.character;
+  const bool handles = b.character.handle_rows.defined();
+  BoundCharacter zero = b.character, third = b.character, lively = b.character;
   zero.apparel_swing_gain = at::zeros({N_a});
   third.apparel_swing_gain = at::full({N_a}, 0.3f);
+  lively.apparel_swing_gain = at::full({N_a}, 1.5f);
   const at::Tensor history = rest_apparel_history(b.character);
   PipelineStepper plain(b.bundle, b.character, history, PipelineStages::kBodyApparel);
   PipelineStepper rigid(b.bundle, zero, history, PipelineStages::kBodyApparel);
   PipelineStepper calm(b.bundle, third, history, PipelineStages::kBodyApparel);
+  PipelineStepper live(b.bundle, lively, history, PipelineStages::kBodyApparel);
+  // Without the stretch limit the shown positions are the gains' exactly.
+  for (PipelineStepper* s : {&plain, &rigid, &calm, &live}) s->set_strain_limit(0.0f);
+  const ApparelRig rig = handles ? b.character.rig() : ApparelRig();
   const at::Tensor A_rest = b.character.V.index_select(0, b.character.apparel_ids);
   float largest_swing = 0;
   for (int64_t t = 0; t < b.motion.size(0); ++t) {
     const at::Tensor T = b.motion[t];
-    const at::Tensor A = plain.step_detailed(T).A_hat, A0 = rigid.step_detailed(T).A_hat;
-    const at::Tensor A3 = calm.step_detailed(T).A_hat;
+    const StepOutput P = plain.step_detailed(T), R = rigid.step_detailed(T), C = calm.step_detailed(T),
+                     L = live.step_detailed(T);
+    const at::Tensor& A = P.A_hat;
     const at::Tensor S =
         linear_blend_skinning(A_rest, b.character.apparel_anchor_weights, T.unsqueeze(0), b.character.joints)
             .squeeze(0);
-    EXPECT_LT((A0 - S).abs().max().item<float>(), 1e-5f) << "frame " << t;
-    EXPECT_LT((A3 - (S + 0.3f * (A - S))).abs().max().item<float>(), 1e-5f) << "frame " << t;
+    EXPECT_LT((R.A_hat - S).abs().max().item<float>(), 1e-5f) << "frame " << t;
+    EXPECT_LT((C.A_hat - (S + 0.3f * (A - S))).abs().max().item<float>(), 1e-5f) << "frame " << t;
     EXPECT_TRUE(at::allclose(rigid.history(), plain.history(), 0.0, 1e-6)) << "frame " << t;
     EXPECT_TRUE(at::allclose(calm.history(), plain.history(), 0.0, 1e-6)) << "frame " << t;
+    if (!handles) {
+      EXPECT_FALSE(P.A_handles.defined());
+      EXPECT_TRUE(at::equal(L.A_hat, A)) << "frame " << t;
+      EXPECT_TRUE(at::allclose(live.history(), plain.history(), 0.0, 1e-6)) << "frame " << t;
+    } else {
+      // The module's own handles are the same in every stepper; the livened ones swing 1.5 times as far.
+      ASSERT_TRUE(P.A_handles.defined());
+      const at::Tensor S_h = S.index_select(0, rig.rows), A_h = P.A_handles;
+      for (const StepOutput* out : {&R, &C, &L}) EXPECT_TRUE(at::allclose(out->A_handles, A_h, 0.0, 1e-6));
+      const at::Tensor expected = follow_turning_handles(S_h + 1.5f * (A_h - S_h), S_h, S, rig);
+      EXPECT_LT((L.A_hat - expected).abs().max().item<float>(), 1e-5f) << "frame " << t;
+      // A livened piece swings further than the module's own.
+      if ((A - S).norm().item<float>() > 1e-4f)
+        EXPECT_GT((L.A_hat - S).norm().item<float>(), 1.2f * (A - S).norm().item<float>()) << "frame " << t;
+    }
     largest_swing = std::max(largest_swing, (A - S).abs().max().item<float>());
   }
   EXPECT_GT(largest_swing, 1e-3f);  // the module swings: the gains are measurable
