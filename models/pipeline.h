@@ -444,8 +444,8 @@ SwingCalibration fit_swing_calibration(const at::Tensor& A_hat, const at::Tensor
 
 /// The largest gain of a fitted swing calibration (fit_swing_calibration): a piece the module moves in step with the
 /// rig's physics but less far than it (least-squares scale above 1) swings up to this much further. On the PMX export
-/// of held-out character 13, whose scale is 1.5 and more, 1.25 measured best (docs/runtime.md, "Livened swing"): 1.5
-/// swung further than its physics' and tore more where the twin tails are pushed out of the back.
+/// of held-out character 13, whose scale is 1.5 and more, 1.25 measured best (docs/runtime.md, "Livened swing"): at 1.5
+/// it was farther from its physics again and tore more where the twin tails are pushed out of the back.
 inline constexpr double kMaxSwingGain = 1.25;
 
 /// How much of each motion the fitted swing calibration runs (fit_swing_on_motions): `amt animate`'s calibration
