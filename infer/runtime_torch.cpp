@@ -734,8 +734,8 @@ std::vector<std::filesystem::path> calibration_motions(const std::string& model_
 
 // The key of a swing fitted on the character's own physics (CachedSwingFit): over the bind's key `bind_key` and what
 // fit_swing_on_own_physics reads besides the bind: the character's files (its physics), each calibration motion's name
-// and bytes (the model's checkpoints are in the bind's key), the stretch limit, the lead-in, the calibration's
-// length and rate and the largest gain it gives.
+// and bytes (the model's checkpoints are in the bind's key), the stretch limit with its squash floor and iterations,
+// the lead-in, the calibration's length and rate and the largest gain it gives.
 std::string swing_fit_key(const AnimateOptions& o, const std::string& bind_key) {
   uint64_t h = fnv1a64(bind_key.data(), bind_key.size());
   for (const std::string* file : {&o.character.spec, &o.character.joints, &o.character.joint_map}) {
@@ -748,8 +748,13 @@ std::string swing_fit_key(const AnimateOptions& o, const std::string& bind_key) 
     h = fnv1a64(name.data(), name.size() + 1, h);
     h = fnv1a64_file(path.string(), "a calibration motion", h);
   }
-  const double settings[5] = {double(o.strain_limit), double(std::max(1, o.playback.lead_in)), kSwingCalibrationSeconds,
-                              double(kApparelStepFps), kMaxSwingGain};
+  const double settings[7] = {double(o.strain_limit),
+                              double(std::max(1, o.playback.lead_in)),
+                              kSwingCalibrationSeconds,
+                              double(kApparelStepFps),
+                              kMaxSwingGain,
+                              double(kDefaultStrainFloor),
+                              double(kStrainLimitIterations)};
   h = fnv1a64(settings, sizeof(settings), h);
   char text[40];
   std::snprintf(text, sizeof(text), "fnv1a64:%016llx", static_cast<unsigned long long>(h));

@@ -8,14 +8,20 @@
 namespace amt {
 
 StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& rest, int num_free, int num_fixed,
-                             float max_stretch, int iterations, float weld_length)
-    : num_free_(num_free), num_fixed_(num_fixed), iterations_(iterations), max_stretch_(max_stretch) {
+                             float max_stretch, int iterations, float weld_length, float min_stretch)
+    : num_free_(num_free),
+      num_fixed_(num_fixed),
+      iterations_(iterations),
+      max_stretch_(max_stretch),
+      min_stretch_(min_stretch) {
   AMT_CHECK(size_t(edges.rows()) == rest.size(), "strain limit: expected a rest length per edge (", edges.rows(),
             "), found ", rest.size());
   AMT_CHECK(num_free >= 0 && num_fixed >= 0, "strain limit: expected vertex counts >= 0, found ", num_free, " and ",
             num_fixed);
   AMT_CHECK(std::isfinite(max_stretch) && max_stretch > 1.0f && max_stretch <= 100.0f,
             "strain limit: expected a largest stretch in (1, 100], found ", max_stretch);
+  AMT_CHECK(std::isfinite(min_stretch) && min_stretch >= 0.0f && min_stretch < 1.0f,
+            "strain limit: expected a smallest stretch in [0, 1), found ", min_stretch);
   AMT_CHECK(iterations >= 1 && iterations <= 1000, "strain limit: expected 1 to 1000 iterations, found ", iterations);
   const int n = num_free + num_fixed;
   // Welded free vertices: union-find, the smallest index of each group its representative.
@@ -48,32 +54,56 @@ StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& r
     a_.push_back(a);
     b_.push_back(b);
     rest_.push_back(rest[size_t(e)]);
-    bound2_.push_back(max_stretch * rest[size_t(e)] * max_stretch * rest[size_t(e)]);
+    const float high = (1.0f + kStrainSlack) * max_stretch * rest[size_t(e)];
+    const float low = (1.0f - kStrainSlack) * min_stretch * rest[size_t(e)];
+    bound2_.push_back(high * high);
+    floor2_.push_back(low * low);
+  }
+  // Each free vertex's edges (compressed rows), for the iterations after the first.
+  incident_offsets_.assign(size_t(num_free) + 1, 0);
+  for (size_t e = 0; e < a_.size(); ++e) {
+    ++incident_offsets_[size_t(a_[e]) + 1];
+    if (b_[e] < num_free) ++incident_offsets_[size_t(b_[e]) + 1];
+  }
+  for (size_t v = 0; v < size_t(num_free); ++v) incident_offsets_[v + 1] += incident_offsets_[v];
+  incident_.resize(size_t(incident_offsets_.back()));
+  std::vector<int32_t> fill(incident_offsets_.begin(), incident_offsets_.end() - 1);
+  for (size_t e = 0; e < a_.size(); ++e) {
+    incident_[size_t(fill[size_t(a_[e])]++)] = int32_t(e);
+    if (b_[e] < num_free) incident_[size_t(fill[size_t(b_[e])]++)] = int32_t(e);
   }
 }
 
 void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
   if (a_.empty()) return;
-  // Per iteration only the edges past their bound do work (a squared-length test first, no square root), and only
-  // the vertices they touch are updated and cleared.
+  // The first iteration tests every edge (a squared-length test first, no square root); later ones only the edges
+  // of the vertices the previous one moved (an edge whose ends stayed put is still within its bounds), in edge
+  // order, so the result is that of testing every edge every time. Only the vertices hit are updated and cleared.
   std::vector<float> delta(size_t(num_free_) * 3, 0.0f);
   std::vector<int> hits(static_cast<size_t>(num_free_), 0);
-  std::vector<int32_t> touched;
+  std::vector<int32_t> touched, active;
+  std::vector<int> queued(a_.size(), -1);  // the iteration an edge was last queued for
   const auto at = [&](int v) -> const float* {
     return v < num_free_ ? free_xyz + size_t(v) * 3 : fixed_xyz + size_t(v - num_free_) * 3;
   };
   for (int it = 0; it < iterations_; ++it) {
+    const bool all = it == 0;
+    const size_t count = all ? a_.size() : active.size();
     touched.clear();
-    for (size_t e = 0; e < a_.size(); ++e) {
+    for (size_t i = 0; i < count; ++i) {
+      const size_t e = all ? i : size_t(active[i]);
       const float* pa = at(a_[e]);
       const float* pb = at(b_[e]);
       const float d[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
       const float squared = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      if (!(squared > bound2_[e]) || !(squared > 0.0f)) continue;  // within the bound (a NaN is left to the caller)
+      const bool stretched = squared > bound2_[e];
+      // Within the bounds, or collapsed to a point (no direction to open it along); a NaN is left to the caller.
+      if (!(stretched || squared < floor2_[e]) || !(squared > 0.0f)) continue;
       const float length = std::sqrt(squared);
-      const float bound = max_stretch_ * rest_[e];
+      const float bound = (stretched ? max_stretch_ : min_stretch_) * rest_[e];
       const bool both = b_[e] < num_free_;
-      const float s = (length - bound) / length * (both ? 0.5f : 1.0f);  // share of d each free end moves
+      // Share of d each free end moves: towards the other end when stretched, away from it when squashed.
+      const float s = (length - bound) / length * (both ? 0.5f : 1.0f);
       for (int k = 0; k < 3; ++k) {
         delta[size_t(a_[e]) * 3 + k] += s * d[k];
         if (both) delta[size_t(b_[e]) * 3 + k] -= s * d[k];
@@ -82,6 +112,14 @@ void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
       if (both && hits[size_t(b_[e])]++ == 0) touched.push_back(b_[e]);
     }
     if (touched.empty()) break;
+    active.clear();
+    for (const int32_t v : touched) {
+      for (int32_t i = incident_offsets_[size_t(v)]; i < incident_offsets_[size_t(v) + 1]; ++i) {
+        const int32_t e = incident_[size_t(i)];
+        if (queued[size_t(e)] != it) queued[size_t(e)] = it, active.push_back(e);
+      }
+    }
+    std::sort(active.begin(), active.end());
     for (const int32_t v : touched) {
       const float w = 1.0f / float(hits[size_t(v)]);
       for (int k = 0; k < 3; ++k) {

@@ -336,15 +336,18 @@ TEST(PipelineStepper, LocalModuleAndRulesMeasureDetailsFromTheHistorysFrames) {
 }
 
 // The largest length over rest length of the linked edges with an apparel end (rest at least 1 mm) in V (N, 3).
-float largest_stretch(const BoundCharacter& b, const at::Tensor& V) {
-  const at::Tensor E = b.graph_edges.to(at::kLong);
+// The smallest and largest length over rest length of the mesh edges with an apparel end (rest above 1 mm), the
+// edges the stepper's strain limit bounds.
+std::pair<float, float> stretch_range(const BoundCharacter& b, const at::Tensor& V) {
+  const at::Tensor E = b.edges.to(at::kLong);
   const at::Tensor apparel = b.apparel_mask.to(at::kBool);
   const at::Tensor keep = apparel.index_select(0, E.select(1, 0)).logical_or(apparel.index_select(0, E.select(1, 1)));
   const at::Tensor kept = E.index({keep});
   const at::Tensor rest = (b.V.index_select(0, kept.select(1, 0)) - b.V.index_select(0, kept.select(1, 1))).norm(2, 1);
   const at::Tensor now = (V.index_select(0, kept.select(1, 0)) - V.index_select(0, kept.select(1, 1))).norm(2, 1);
   const at::Tensor long_enough = rest.gt(1e-3);
-  return (now.index({long_enough}) / rest.index({long_enough})).max().item<float>();
+  const at::Tensor ratio = now.index({long_enough}) / rest.index({long_enough});
+  return {ratio.min().item<float>(), ratio.max().item<float>()};
 }
 
 TEST(PipelineStepper, TheStrainLimitBoundsTheModulesStretchAndLeavesTheRulesAlone) {
@@ -373,13 +376,28 @@ TEST(PipelineStepper, TheStrainLimitBoundsTheModulesStretchAndLeavesTheRulesAlon
   EXPECT_EQ(limited.strain_limit(), kDefaultStrainLimit);
   const StepOutput r = raw.step_detailed(motion[3]);
   const StepOutput l = limited.step_detailed(motion[3]);
-  const float before = largest_stretch(b, r.V_hat), after = largest_stretch(b, l.V_hat);
+  const float before = stretch_range(b, r.V_hat).second, after = stretch_range(b, l.V_hat).second;
   EXPECT_GT(before, 1.5f);
   EXPECT_LT(after, before - 0.2f) << before << " -> " << after;
   // Only apparel vertices move; the body is the same.
   EXPECT_TRUE(at::equal(r.B_hat, l.B_hat));
   // The limited output is the history: the next step starts from it (differs from the raw stepper's).
   EXPECT_TRUE(at::equal(limited.history()[2], l.A_hat));
+
+  // Squashed to 0.3 of its size: a floor of 0.7 opens the edges back towards it.
+  const at::Tensor squashed = (centre + 0.3f * (A_rest - centre)).unsqueeze(0).repeat({3, 1, 1});
+  PipelineStepper raw_squashed(bundle, b, squashed, PipelineStages::kBodyApparel);
+  raw_squashed.set_strain_limit(0.0f);
+  PipelineStepper floored(bundle, b, squashed, PipelineStages::kBodyApparel);
+  floored.set_strain_limit(kDefaultStrainLimit, kStrainLimitIterations, 0.7f);
+  const float least_raw = stretch_range(b, raw_squashed.step_detailed(motion[3]).V_hat).first;
+  const float least = stretch_range(b, floored.step_detailed(motion[3]).V_hat).first;
+  EXPECT_LT(least_raw, 0.5f);
+  EXPECT_GT(least, least_raw + 0.2f) << least_raw << " -> " << least;
+  // Without a floor (the default) only the stretch is bounded: the squash stays as the module made it.
+  EXPECT_EQ(kDefaultStrainFloor, 0.0f);
+  PipelineStepper stretch_only(bundle, b, squashed, PipelineStages::kBodyApparel);
+  EXPECT_LT(stretch_range(b, stretch_only.step_detailed(motion[3]).V_hat).first, least_raw + 0.05f);
 
   // The rules are not limited: hold_offset is its anchor-carried detail whatever the setting.
   PipelineStepper hold(bundle, b, stretched, PipelineStages::kBodyApparel, ApparelSource::kHoldOffset);

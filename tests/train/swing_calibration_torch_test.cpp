@@ -193,8 +193,9 @@ void check_gained_stepper(const Bound& b) {
       const at::Tensor expected = follow_turning_handles(S_h + 1.5f * (A_h - S_h), S_h, S, rig);
       EXPECT_LT((L.A_hat - expected).abs().max().item<float>(), 1e-5f) << "frame " << t;
       // A livened piece swings further than the module's own.
-      if ((A - S).norm().item<float>() > 1e-4f)
+      if ((A - S).norm().item<float>() > 1e-4f) {
         EXPECT_GT((L.A_hat - S).norm().item<float>(), 1.2f * (A - S).norm().item<float>()) << "frame " << t;
+      }
     }
     largest_swing = std::max(largest_swing, (A - S).abs().max().item<float>());
   }
