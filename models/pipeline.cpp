@@ -591,9 +591,9 @@ void PipelineStepper::set_strain_limit(float max_stretch, int iterations, float 
   const int64_t* e = E.data_ptr<int64_t>();
   const float* v = V.data_ptr<float>();
   // The mesh's own edges and its seam links, not the proximity links between pieces: those join the two sides of
-  // a double-sided strip a millimetre or two apart, and bounding them too asks for lengths the mesh edges around
-  // them cannot all take at once, so the projections never settle (measured on the artist-style remakes: about a
-  // thousand vertices still moving after 64 iterations, against at most 9 iterations without them).
+  // a double-sided strip a millimetre or two apart, and bounding them too moves vertices against the mesh edges
+  // around them (measured on the artist-style remakes: tearing 0.71 % with them, 0.52 % without; up to 11
+  // projections per frame with them, 4 without).
   std::vector<std::pair<int64_t, int64_t>> mesh_edges;
   {
     const at::Tensor M = character_.edges.to(at::kLong).contiguous();

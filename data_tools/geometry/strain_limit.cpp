@@ -82,7 +82,6 @@ void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
   std::vector<float> delta(size_t(num_free_) * 3, 0.0f);
   std::vector<int> hits(static_cast<size_t>(num_free_), 0);
   std::vector<int32_t> touched, active;
-  std::vector<int> queued(a_.size(), -1);  // the iteration an edge was last queued for
   const auto at = [&](int v) -> const float* {
     return v < num_free_ ? free_xyz + size_t(v) * 3 : fixed_xyz + size_t(v - num_free_) * 3;
   };
@@ -114,12 +113,11 @@ void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
     if (touched.empty()) break;
     active.clear();
     for (const int32_t v : touched) {
-      for (int32_t i = incident_offsets_[size_t(v)]; i < incident_offsets_[size_t(v) + 1]; ++i) {
-        const int32_t e = incident_[size_t(i)];
-        if (queued[size_t(e)] != it) queued[size_t(e)] = it, active.push_back(e);
-      }
+      active.insert(active.end(), incident_.begin() + incident_offsets_[size_t(v)],
+                    incident_.begin() + incident_offsets_[size_t(v) + 1]);
     }
     std::sort(active.begin(), active.end());
+    active.erase(std::unique(active.begin(), active.end()), active.end());
     for (const int32_t v : touched) {
       const float w = 1.0f / float(hits[size_t(v)]);
       for (int k = 0; k < 3; ++k) {
