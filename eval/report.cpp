@@ -361,7 +361,8 @@ std::string report_markdown(const EvaluationResult& result, const ReportOptions&
   if (!result.predictions.empty()) md << "- Predictions: `" << result.predictions << "`\n";
   for (const auto& [subset, n] : result.clips) md << "- " << subset << ": " << n << " clip(s)\n";
   md << "- Apparel stretch limit: "
-     << (result.options.strain_limit > 0 ? "every apparel mesh edge at most " + fixed(result.options.strain_limit, 2) +
+     << (result.options.strain_limit > 0 ? "every apparel mesh edge between " + fixed(kDefaultStrainFloor, 2) +
+                                               " and " + fixed(result.options.strain_limit, 2) +
                                                " times its rest length in the methods that run the apparel module "
                                                "(`--strain-limit`)"
                                          : std::string("off (`--strain-limit 0`): the apparel module's raw output"))

@@ -20,9 +20,10 @@ namespace amt {
 
 /// Value of the archive key `format`, and the version written and read.
 inline constexpr const char* kBindFormat = "amt-bind";
-inline constexpr int64_t kBindVersion = 8;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
+inline constexpr int64_t kBindVersion = 9;  // 4: apparel pieces hung (hang_apparel_pieces); 5: and what it changed;
                                             // 6: the linked topology and the handles; 7: the apparel
-                                            // bones' physics response; 8: the swing calibration
+                                            // bones' physics response; 8: the swing calibration;
+                                            // 9: each side of a weld group across the mask tied
 
 /// FNV-1a 64-bit over bytes, continuing from `hash` (start with kFnvOffset).
 inline constexpr uint64_t kFnvOffset = 14695981039346656037ull;

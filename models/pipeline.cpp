@@ -605,18 +605,21 @@ void PipelineStepper::set_strain_limit(float max_stretch, int iterations, float 
   const auto is_mesh_edge = [&](int64_t a, int64_t b) {
     return std::binary_search(mesh_edges.begin(), mesh_edges.end(), std::make_pair(std::min(a, b), std::max(a, b)));
   };
+  // Vertices of one weld group are one point (rest length 0: the limiter welds them), whatever their distance: a
+  // group chains vertices each within the tolerance of the next, so a seam link can be longer than the tolerance.
   const float weld = TopologyOptions().weld_tolerance;
+  const std::vector<int32_t> group = weld_vertices(to_matrix3f(V), weld);
   std::vector<std::array<int32_t, 2>> kept;
   std::vector<float> rest;
   for (int64_t k = 0; k < E.size(0); ++k) {
     const int64_t a = e[2 * k], b = e[2 * k + 1];
     const int32_t pa = place[size_t(a)], pb = place[size_t(b)];
     if (pa < 0 || pb < 0 || (pa >= N_a && pb >= N_a)) continue;
+    const bool seam = group[size_t(a)] == group[size_t(b)];
+    if (!seam && !is_mesh_edge(a, b)) continue;  // a proximity link
     const float dx = v[3 * a] - v[3 * b], dy = v[3 * a + 1] - v[3 * b + 1], dz = v[3 * a + 2] - v[3 * b + 2];
-    const float length = std::sqrt(dx * dx + dy * dy + dz * dz);
-    if (!(length < weld) && !is_mesh_edge(a, b)) continue;  // a proximity link
     kept.push_back({pa, pb});
-    rest.push_back(length);
+    rest.push_back(seam ? 0.0f : std::sqrt(dx * dx + dy * dy + dz * dz));
   }
   MatrixX2i edges(Eigen::Index(kept.size()), 2);
   for (size_t k = 0; k < kept.size(); ++k) edges.row(Eigen::Index(k)) << kept[k][0], kept[k][1];

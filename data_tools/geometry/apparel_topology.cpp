@@ -35,6 +35,22 @@ std::vector<std::pair<int32_t, int32_t>> pairs_of(const MatrixX2i& E) {
   return out;
 }
 
+// Each vertex's smallest copy on its own side: the smallest vertex of its weld group (weld, from weld_vertices)
+// whose side(i) is the same as its own. A group that straddles body and apparel splits in two, each side still
+// one point: were the copies of a side tied only through a representative on the other side, they would not be
+// tied at all and could part.
+template <typename Side>
+std::vector<int32_t> smallest_same_side(const std::vector<int32_t>& weld, Side side) {
+  std::vector<int32_t> first[2] = {std::vector<int32_t>(weld.size(), -1), std::vector<int32_t>(weld.size(), -1)};
+  std::vector<int32_t> out(weld.size());
+  for (size_t i = 0; i < weld.size(); ++i) {
+    int32_t& f = first[side(i) ? 1 : 0][size_t(weld[i])];
+    if (f < 0) f = int32_t(i);
+    out[i] = f;
+  }
+  return out;
+}
+
 int count_parts(int N, const std::vector<std::pair<int32_t, int32_t>>& pairs) {
   int count = 0;
   connected_components(N, unique_pairs(pairs), &count);
@@ -59,16 +75,16 @@ LinkedTopology linked_topology(const MatrixX3f& V, const MatrixX3i& F, const std
   std::vector<std::pair<int32_t, int32_t>> pairs = pairs_of(unique_edges(F));
   out.parts = count_parts(N, pairs);
 
-  // Seam links: every vertex to the smallest vertex of its weld group, unless the mask splits the pair.
+  // Seam links: every vertex to the smallest vertex of its weld group on its side of the mask; a vertex whose
+  // group's smallest vertex is on the other side counts as a refused link.
   out.weld = weld_vertices(V, options.weld_tolerance);
+  const std::vector<int32_t> same = smallest_same_side(out.weld, [&](size_t i) { return apparel(int(i)); });
   for (int i = 0; i < N; ++i) {
     const int r = out.weld[size_t(i)];
     if (r == i) continue;
-    if (apparel(i) != apparel(r)) {
-      ++out.refused_links;
-      continue;
-    }
-    pairs.emplace_back(r, i);
+    if (apparel(i) != apparel(r)) ++out.refused_links;
+    if (same[size_t(i)] == i) continue;
+    pairs.emplace_back(same[size_t(i)], i);
     ++out.seam_links;
   }
   int welded_count = 0;
@@ -145,9 +161,7 @@ std::vector<uint8_t> weld_consistent_mask(const std::vector<uint8_t>& mask, cons
 std::vector<int32_t> canonical_copies(const std::vector<int32_t>& weld, const std::vector<uint8_t>& mask) {
   AMT_CHECK(mask.size() == weld.size(), "canonical copies: expected ", weld.size(), " mask entries, found ",
             mask.size());
-  std::vector<int32_t> canon(weld.size());
-  for (size_t i = 0; i < weld.size(); ++i) canon[i] = mask[size_t(weld[i])] == mask[i] ? weld[i] : int32_t(i);
-  return canon;
+  return smallest_same_side(weld, [&](size_t i) { return mask[i] != 0; });
 }
 
 MatrixXfR welded_geodesics(const MatrixX3f& V, const MatrixX3i& F, const MatrixX3f& joints,

@@ -56,7 +56,9 @@ struct LinkedTopology {
 /// The linked edge set of (V, F). `apparel_mask` (#V entries 0/1, or empty: everything is apparel for
 /// the proximity links and no weld is refused) says which vertices the proximity links join; a weld
 /// between a body and an apparel vertex is refused and counted (the mask decides which side each copy
-/// moves with). Deterministic. Throws amt::Error on options out of range or a mask of another length.
+/// moves with), and the copies on each side of a group that straddles them are linked to the smallest of
+/// them on that side (canonical_copies). Deterministic. Throws amt::Error on options out of range or a mask of another
+/// length.
 LinkedTopology linked_topology(const MatrixX3f& V, const MatrixX3i& F, const std::vector<uint8_t>& apparel_mask,
                                const TopologyOptions& options = {});
 
@@ -66,8 +68,8 @@ LinkedTopology linked_topology(const MatrixX3f& V, const MatrixX3i& F, const std
 std::vector<uint8_t> weld_consistent_mask(const std::vector<uint8_t>& mask, const std::vector<int32_t>& weld,
                                           int* changed = nullptr);
 
-/// Each vertex's canonical copy: the vertex it welds to (weld, from linked_topology) when the mask puts
-/// both on the same side, else itself (a refused weld).
+/// Each vertex's canonical copy: the smallest vertex of its weld group (weld, from linked_topology) on the same
+/// side of the mask. A group that straddles body and apparel (a refused weld) splits in two, each side one point.
 std::vector<int32_t> canonical_copies(const std::vector<int32_t>& weld, const std::vector<uint8_t>& mask);
 
 /// Geodesic distances (ids.size(), J) of the vertices `ids` (ascending) over the sub-mesh of those vertices

@@ -24,9 +24,11 @@ StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& r
             "strain limit: expected a smallest stretch in [0, 1), found ", min_stretch);
   AMT_CHECK(iterations >= 1 && iterations <= 1000, "strain limit: expected 1 to 1000 iterations, found ", iterations);
   const int n = num_free + num_fixed;
-  // Welded free vertices: union-find, the smallest index of each group its representative.
-  std::vector<int32_t> rep(static_cast<size_t>(num_free));
-  for (int v = 0; v < num_free; ++v) rep[size_t(v)] = v;
+  // Welded vertices: union-find over free and fixed ones. A group's representative is its smallest fixed vertex
+  // when it has one (the free copies of a body vertex are pinned to it: a floor pushing them off the body would
+  // otherwise fight the weld pulling them back and leave the seam open), else its smallest free vertex.
+  std::vector<int32_t> rep(static_cast<size_t>(n));
+  for (int v = 0; v < n; ++v) rep[size_t(v)] = v;
   const auto find = [&](int v) {
     while (rep[size_t(v)] != v) v = rep[size_t(v)] = rep[size_t(rep[size_t(v)])];
     return v;
@@ -37,20 +39,28 @@ StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& r
               n, "), found (", a, ", ", b, ")");
     AMT_CHECK(std::isfinite(rest[size_t(e)]) && rest[size_t(e)] >= 0.0f, "strain limit: edge ", e,
               ": expected a rest length >= 0, found ", rest[size_t(e)]);
-    if (a < num_free && b < num_free && rest[size_t(e)] < weld_length) {
+    if ((a < num_free || b < num_free) && rest[size_t(e)] < weld_length) {
       const int ra = find(a), rb = find(b);
-      if (ra != rb) rep[size_t(std::max(ra, rb))] = std::min(ra, rb);
+      // Fixed vertices rank before free ones, each in index order.
+      const auto rank = [&](int r) { return r >= num_free ? r - num_free : n + r; };
+      if (ra != rb) {
+        if (rank(ra) < rank(rb))
+          rep[size_t(rb)] = ra;
+        else
+          rep[size_t(ra)] = rb;
+      }
     }
   }
   for (int v = 0; v < num_free; ++v) {
     if (find(v) != v) copies_.insert(copies_.end(), {v, find(v)});
   }
   for (Eigen::Index e = 0; e < edges.rows(); ++e) {
+    // Free ends stand for their groups (which may be a fixed vertex); a fixed end stays itself.
     int a = edges(e, 0), b = edges(e, 1);
     if (a < num_free) a = find(a);
     if (b < num_free) b = find(b);
     if (a >= num_free) std::swap(a, b);
-    if (a >= num_free || a == b) continue;  // both ends fixed, or within one welded point: nothing to move
+    if (a >= num_free || a == b) continue;  // both ends fixed or pinned, or within one welded point: nothing to move
     a_.push_back(a);
     b_.push_back(b);
     rest_.push_back(rest[size_t(e)]);
@@ -75,7 +85,7 @@ StrainLimiter::StrainLimiter(const MatrixX2i& edges, const std::vector<float>& r
 }
 
 void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
-  if (a_.empty()) return;
+  if (empty()) return;
   // The first iteration tests every edge (a squared-length test first, no square root); later ones only the edges
   // of the vertices the previous one moved (an edge whose ends stayed put is still within its bounds), in edge
   // order, so the result is that of testing every edge every time. Only the vertices hit are updated and cleared.
@@ -128,7 +138,8 @@ void StrainLimiter::apply(float* free_xyz, const float* fixed_xyz) const {
     }
   }
   for (size_t k = 0; k < copies_.size(); k += 2) {
-    for (int c = 0; c < 3; ++c) free_xyz[size_t(copies_[k]) * 3 + c] = free_xyz[size_t(copies_[k + 1]) * 3 + c];
+    const float* from = at(copies_[k + 1]);  // read before the write: a copy is never its own representative
+    for (int c = 0; c < 3; ++c) free_xyz[size_t(copies_[k]) * 3 + c] = from[c];
   }
 }
 

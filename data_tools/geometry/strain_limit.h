@@ -24,7 +24,8 @@ inline constexpr float kStrainSlack = 0.02f;
 /// Stretch limits over the edges of a surface split into free vertices (moved: the apparel) and fixed ones (the
 /// body), numbered in one list: free vertices 0 .. num_free - 1, fixed ones num_free .. num_free + num_fixed - 1.
 /// Free vertices joined by an edge of rest length below `weld_length` (the copies of a welded seam) are one point:
-/// the limiter moves one of them and the others take its position, so a seam that is closed stays closed.
+/// the limiter moves one of them and the others take its position, so a seam that is closed stays closed. A free
+/// vertex so joined to a fixed one (apparel sewn to the body at a seam) is pinned: it takes the fixed position.
 class StrainLimiter {
  public:
   StrainLimiter() = default;
@@ -43,14 +44,15 @@ class StrainLimiter {
   /// by the mean of the requests it received (Jacobi: the result does not depend on the edges' order). Deterministic.
   void apply(float* free_xyz, const float* fixed_xyz) const;
 
-  bool empty() const { return a_.empty(); }
+  bool empty() const { return a_.empty() && copies_.empty(); }
   int num_edges() const { return int(a_.size()); }
   float max_stretch() const { return max_stretch_; }
   float min_stretch() const { return min_stretch_; }
 
  private:
   std::vector<int32_t> a_, b_;  // a_ free; b_ free or fixed (>= num_free_); free ends are representatives
-  std::vector<int32_t> copies_;  // (copy, representative) pairs of welded free vertices, flattened
+  std::vector<int32_t>
+      copies_;  // (copy, representative: free, or fixed when pinned) pairs of welded vertices, flattened
   std::vector<int32_t> incident_offsets_, incident_;  // each free vertex's edges: incident_[offsets[v] .. offsets[v+1])
   std::vector<float> rest_, bound2_, floor2_;         // rest lengths, (max_stretch x rest)^2, (min_stretch x rest)^2
   int num_free_ = 0, num_fixed_ = 0, iterations_ = 0;

@@ -222,6 +222,41 @@ TEST(ApparelHandlesPipeline, SplitSeamsBindAsOneSurfaceAndTheCopiesMoveAsOne) {
   EXPECT_LE(worst, 1e-6f);
 }
 
+TEST(ApparelHandlesPipeline, AWeldChainLongerThanTheToleranceStaysOnePointUnderTheStretchLimit) {
+  // The split seams' copies moved 1.4 mm off their originals (past the 1 mm weld tolerance), each joined to its
+  // original by a faceless vertex half way: a weld group chained through it, whose seam link from the copy to the
+  // original is 1.4 mm long. From an apparel history stretched to twice its size, the stretch limit works on every
+  // edge; each copy and its middle vertex come out exactly where the original does.
+  Fixture f = fixture("handles_chain", 6);
+  const Micro& m = f.micro;
+  const Seamed seamed = split_apparel(m);
+  const int64_t N = m.V.size(0), copies = seamed.V.size(0) - N;
+  ASSERT_GT(copies, 10);
+  const at::Tensor shift = at::tensor({0.0014f, 0.0f, 0.0f});
+  const at::Tensor originals = seamed.source.narrow(0, N, copies);
+  at::Tensor V = seamed.V.clone();
+  V.narrow(0, N, copies) += shift;
+  V = at::cat({V, m.V.index_select(0, originals) + 0.5f * shift}, 0);  // the middle vertices
+  const at::Tensor mask = at::cat({seamed.mask, seamed.mask.narrow(0, N, copies)}, 0);
+  const BoundCharacter b = bind_masked(f.bundle, V, seamed.F, m.joints, mask);
+  EXPECT_EQ(b.topology().seam_links,
+            bind_masked(f.bundle, seamed.V, seamed.F, m.joints, seamed.mask).topology().seam_links + copies);
+  const at::Tensor A_rest = V.index_select(0, b.apparel_ids);
+  const at::Tensor centre = A_rest.mean(0, true);
+  const at::Tensor stretched = (centre + 2.0f * (A_rest - centre)).unsqueeze(0).repeat({3, 1, 1});
+  PipelineStepper stepper(f.bundle, b, stretched, PipelineStages::kBodyApparel);
+  ASSERT_EQ(stepper.strain_limit(), kDefaultStrainLimit);
+  const at::Tensor V_hat = stepper.step(m.motion[3]);
+  const at::Tensor at_original = V_hat.index_select(0, originals);
+  EXPECT_TRUE(at::equal(V_hat.narrow(0, N, copies), at_original));
+  EXPECT_TRUE(at::equal(V_hat.narrow(0, N + copies, copies), at_original));
+  // Without the limit, the copies follow their handles from their own rest places: 1.4 mm apart, turned.
+  PipelineStepper raw(f.bundle, b, stretched, PipelineStages::kBodyApparel);
+  raw.set_strain_limit(0.0f);
+  const at::Tensor R_hat = raw.step(m.motion[3]);
+  EXPECT_GT((R_hat.narrow(0, N, copies) - R_hat.index_select(0, originals)).norm(2, 1).min().item<float>(), 5e-4f);
+}
+
 TEST(ApparelHandlesPipeline, AGivenMaskThatSplitsAWeldIsKeptAndCounted) {
   Fixture f = fixture("handles_refused", 4);
   const Micro& m = f.micro;

@@ -69,6 +69,32 @@ TEST(LinkedTopology, AWeldAcrossTheMaskIsRefusedAndCounted) {
   EXPECT_EQ(same[6], 1);
 }
 
+TEST(LinkedTopology, ApparelCopiesOfABodyVertexStayLinkedToEachOther) {
+  // The seamed quads and a third quad (8-11) whose left edge is a third copy of the shared edge (8 = 1 = 4,
+  // 9 = 3 = 5). Left quad body, the other two apparel: each weld group's smallest vertex (1, 3) is body, and the
+  // two apparel copies of each are linked to each other instead of left apart.
+  MatrixX3f V;
+  MatrixX3i F;
+  seamed_quads(V, F);
+  V.conservativeResize(12, 3);
+  V.bottomRows(4) << 0.01f, 0, 0, 0.01f, 0.01f, 0, 0.01f, 0, 0.01f, 0.01f, 0.01f, 0.01f;
+  F.conservativeResize(6, 3);
+  F.bottomRows(2) << 8, 10, 11, 8, 11, 9;
+  const std::vector<uint8_t> mask = {0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1};
+  const LinkedTopology t = linked_topology(V, F, mask);
+  EXPECT_EQ(t.weld[8], 1);
+  EXPECT_EQ(t.refused_links, 4);
+  EXPECT_EQ(t.seam_links, 2);
+  EXPECT_TRUE(has_edge(t.edges, 4, 8));
+  EXPECT_TRUE(has_edge(t.edges, 5, 9));
+  EXPECT_FALSE(has_edge(t.edges, 1, 4));
+  EXPECT_FALSE(has_edge(t.edges, 1, 8));
+  EXPECT_EQ(t.welded_parts, 2);  // the body quad; the two apparel quads as one
+  const std::vector<int32_t> canon = canonical_copies(t.weld, mask);
+  const std::vector<int32_t> expected = {0, 1, 2, 3, 4, 5, 6, 7, 4, 5, 10, 11};
+  EXPECT_EQ(canon, expected);
+}
+
 // A strip of `rows` rows of two vertices (x0 and x0 + width), 1 cm apart downwards from y = 0, in the plane z.
 void add_strip(MatrixX3f& V, MatrixX3i& F, int rows, float x0, float width, float z) {
   const Eigen::Index base = V.rows(), faces = F.rows();

@@ -1,7 +1,7 @@
 // Strain limiting: hand-computed projections (two free ends share the excess, a free end of a fixed edge takes
 // all of it; a squashed edge opened to the floor), edges within the bounds and their slack untouched, welded copies
-// moved as one point, the result independent of the edges' order and equal to testing every edge every iteration,
-// convergence on a stretched chain, and bad input.
+// moved as one point, free copies of a fixed vertex pinned to it, the result independent of the edges' order and equal
+// to testing every edge every iteration, convergence on a stretched chain, and bad input.
 #include "data_tools/geometry/strain_limit.h"
 
 #include <gtest/gtest.h>
@@ -159,6 +159,28 @@ TEST(StrainLimiter, WeldedCopiesMoveAsOnePointAndAClosedSeamStaysClosed) {
   unwelded.apply(open, fixed_xyz);
   const float gap = Eigen::Vector3f(open[0] - open[3], open[1] - open[4], open[2] - open[5]).norm();
   EXPECT_GT(gap, 1e-3f) << open[0] << " " << open[1] << " " << open[3] << " " << open[4];
+}
+
+TEST(StrainLimiter, AFreeCopyOfAFixedVertexIsPinnedToItAgainstTheFloor) {
+  // Free 0 is the apparel copy of fixed vertex 2 (a link of rest length 0); free 1 is welded to free 0 too. Edge
+  // 0-3 (rest 1) is squashed to 0.5 by the body it hangs from, below the floor 0.7: the floor asks 0 to move away
+  // from 3, the weld to stay on 2. Pinned, both copies sit exactly on 2 and the squashed edge is left as the body has
+  // it; the edge 1-4 between a copy and another fixed vertex is not limited either (both ends are fixed now).
+  const MatrixX2i E = edge_list({{0, 2}, {0, 1}, {0, 3}, {1, 4}});
+  const StrainLimiter limiter(E, {0.0f, 0.0f, 1.0f, 1.0f}, 2, 3, 1.2f, 32, 1e-3f, 0.7f);
+  EXPECT_EQ(limiter.num_edges(), 0);
+  float free_xyz[6] = {0.1f, 0.2f, 0.0f, -0.1f, 0.0f, 0.3f};
+  const float fixed_xyz[9] = {0, 0, 0, 0.5f, 0, 0, 0, 3.0f, 0};
+  limiter.apply(free_xyz, fixed_xyz);
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(free_xyz[k], fixed_xyz[k % 3]) << k;
+  // A free vertex with an edge to a pinned group is limited against the fixed vertex the group is pinned to.
+  const StrainLimiter chain(edge_list({{0, 2}, {1, 0}}), {0.0f, 1.0f}, 2, 1, 1.2f, 1, 1e-3f);
+  EXPECT_EQ(chain.num_edges(), 1);
+  float moved[6] = {5, 5, 5, 0, 3, 0};
+  const float body[3] = {0, 0, 0};
+  chain.apply(moved, body);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(moved[k], body[k]) << k;
+  EXPECT_NEAR(moved[4], 1.2f, 1e-6f);  // pulled all the way to the bound (a free end of a fixed edge)
 }
 
 TEST(StrainLimiter, TheResultDoesNotDependOnTheEdgesOrderAndAChainConverges) {
