@@ -18,6 +18,12 @@ namespace amt::app {
 // The model of `amt animate` when --model is not given: the shipped one.
 constexpr const char* kDefaultModel = "models/pretrained";
 
+std::string strain_floor_text() {
+  std::ostringstream text;
+  text << kDefaultStrainFloor;
+  return text.str();
+}
+
 void add_animate_command(CLI::App& app) {
   auto o = std::make_shared<AnimateOptions>();
   auto fps = std::make_shared<double>(0.0);
@@ -95,15 +101,11 @@ void add_animate_command(CLI::App& app) {
   cmd->add_flag("--refiner", o->refine,
                 "Also run the model's joint refiner after the apparel module (off by default: it gains at most "
                 "0.01 cm on the held-out characters for about a third of the frame's time)");
-  const std::string strain_floor = [] {  // kDefaultStrainFloor as written: "0.7"
-    std::ostringstream text;
-    text << kDefaultStrainFloor;
-    return text.str();
-  }();
   cmd->add_option("--strain-limit", o->strain_limit,
                   "Largest stretch of an apparel edge over its rest length that the learned apparel is limited to "
                   "(projections per frame until every apparel edge is within it and at least " +
-                      strain_floor + " times its rest length; apparel vertices only, welded seams one point; 0: off)")
+                      strain_floor_text() +
+                      " times its rest length; apparel vertices only, welded seams one point; 0: off)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
       ->capture_default_str();
   cmd->add_option("--swing-calibration", o->swing_calibration,

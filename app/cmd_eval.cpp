@@ -4,7 +4,6 @@
 #include <iostream>
 #include <map>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -210,15 +209,10 @@ void add_eval_command(CLI::App& app) {
   eval->add_flag("--rig-handles", o.rig_handles,
                  "On characters whose rig has apparel bones, the methods on the ground-truth mask move the apparel "
                  "module's handles at the rig's own bones instead of handles picked automatically");
-  const std::string strain_floor = [] {  // kDefaultStrainFloor as written: "0.7"
-    std::ostringstream text;
-    text << kDefaultStrainFloor;
-    return text.str();
-  }();
   eval->add_option("--strain-limit", o.strain_limit,
                    "Largest stretch of an apparel edge over its rest length that the learned apparel's output is "
                    "limited to, each edge also at least " +
-                       strain_floor + " times its rest length (0: off, the apparel module's raw output)")
+                       strain_floor_text() + " times its rest length (0: off, the apparel module's raw output)")
       ->check(CLI::Number & (CLI::IsMember({0.0f}) | CLI::Range(1.01f, 100.0f)))
       ->capture_default_str();
   eval->add_option_function<std::string>(

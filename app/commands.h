@@ -2,6 +2,7 @@
 // Subcommands of the `amt` program. Each add_* registers its subcommand and the callback that runs
 // it; callbacks throw amt::Error on bad input, which main prints as one line before exiting 1.
 #include <CLI/CLI.hpp>
+#include <string>
 
 namespace amt::app {
 
@@ -28,6 +29,9 @@ void add_retarget_cloth_command(CLI::App& app);
 void add_refit_garment_command(CLI::App& app);
 /// `amt convert`: a PMX model as glTF or a VRM 1.0 avatar with spring bones (data_tools/formats/pmx_gltf.h).
 void add_convert_command(CLI::App& app);
+
+/// kDefaultStrainFloor as the help of `--strain-limit` writes it ("0.7").
+std::string strain_floor_text();
 
 /// Adds the `--threads` option every subcommand has; the value is applied before the callback runs.
 void add_threads_option(CLI::App& command);

@@ -1,13 +1,13 @@
 #pragma once
 // Strain limiting of a predicted surface: no edge longer than a bound times its rest length, nor shorter than
-// another (X. Provot,
-// "Deformation Constraints in a Mass-Spring Model to Describe Rigid Cloth Behavior", Graphics Interface 1995;
-// the "inextensibility" projection of position-based cloth). The learned apparel moves a few hundred handles that
-// the vertices follow; where two neighbouring handles part, the edges between them stretch to 1.5 times their rest
-// length and more while the simulation keeps them near rest (measured on the artist-style remakes: about half of
-// the edges `amt eval` counts as torn); where they close in, edges squash to a fraction of their length. A few
-// projections pull them back, moving apparel vertices only (the body is where the apparel hangs from). Written by hand:
-// it is a few loops over an edge list, and the libraries that have it (cloth simulators) bring a whole solver.
+// another (X. Provot, "Deformation Constraints in a Mass-Spring Model to Describe Rigid Cloth Behavior", Graphics
+// Interface 1995; the "inextensibility" projection of position-based cloth). The learned apparel moves a few hundred
+// handles that the vertices follow; where two neighbouring handles part, the edges between them stretch to 1.5 times
+// their rest length and more while the simulation keeps them near rest (measured on the artist-style remakes: about
+// half of the edges `amt eval` counts as torn); where they close in, edges squash to a fraction of their length. A
+// few projections pull them back, moving apparel vertices only (the body is where the apparel hangs from). Written
+// by hand: it is a few loops over an edge list, and the libraries that have it (cloth simulators) bring a whole
+// solver.
 #include <cstdint>
 #include <vector>
 
@@ -47,12 +47,10 @@ class StrainLimiter {
   bool empty() const { return a_.empty() && copies_.empty(); }
   int num_edges() const { return int(a_.size()); }
   float max_stretch() const { return max_stretch_; }
-  float min_stretch() const { return min_stretch_; }
 
  private:
   std::vector<int32_t> a_, b_;  // a_ free; b_ free or fixed (>= num_free_); free ends are representatives
-  std::vector<int32_t>
-      copies_;  // (copy, representative: free, or fixed when pinned) pairs of welded vertices, flattened
+  std::vector<int32_t> copies_;  // (copy, its representative: free, or fixed when pinned) pairs, flattened
   std::vector<int32_t> incident_offsets_, incident_;  // each free vertex's edges: incident_[offsets[v] .. offsets[v+1])
   std::vector<float> rest_, bound2_, floor2_;         // rest lengths, (max_stretch x rest)^2, (min_stretch x rest)^2
   int num_free_ = 0, num_fixed_ = 0, iterations_ = 0;
